@@ -1,0 +1,57 @@
+// A traverse log in memory (the contract: docs/log-format.md, ../shared/docs/log-format.md).
+//
+// Streams are column-wise: `t` is one vector, `values` an N×C Eigen matrix (column-major, so
+// each channel is contiguous). Every stream keeps its own timestamps.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "traverse/io/rover_config.h"
+#include "traverse/rover/rover_geometry.h"
+
+namespace traverse::io {
+
+struct Stream {
+  std::vector<std::string> columns;  ///< value columns, without the leading `t`
+  Eigen::VectorXd t;                 ///< seconds, strictly increasing
+  Eigen::MatrixXd values;            ///< rows = samples, cols = columns
+
+  Eigen::Index size() const { return t.size(); }
+  bool empty() const { return t.size() == 0; }
+  /// Index of a value column, or −1.
+  int col(std::string_view name) const;
+  bool has(std::string_view name) const { return col(name) >= 0; }
+  /// One channel by name (throws std::out_of_range if absent).
+  Eigen::Ref<const Eigen::VectorXd> channel(std::string_view name) const;
+};
+
+struct TraverseLog {
+  std::filesystem::path dir;
+  RoverConfig config;
+  rover::RoverGeometry geometry;
+  Stream gyro;                  ///< t,wz  or  t,wx,wy,wz
+  Stream joints;                ///< t,gamma0,…,psi6
+  std::optional<Stream> sun;    ///< t,s1,s2,valid
+  std::optional<Stream> accel;  ///< t,ax,ay,az
+  std::optional<Stream> cmd;    ///< t,vx,vy,vz,wx,wy,wz
+  std::optional<Stream> truth;  ///< t,x,y,z,qw,qx,qy,qz[,xi1..xi6][,bx,by,bz][,vx,vy,vz][,wx,wy,wz]
+};
+
+struct ReadOptions {
+  bool skip_bad_rows = false;  ///< count and drop malformed rows instead of stopping
+};
+
+/// What a read skipped (per file name), when ReadOptions::skip_bad_rows is set.
+struct ReadReport {
+  std::map<std::string, long> skipped_rows;
+  long totalSkipped() const;
+};
+
+}  // namespace traverse::io

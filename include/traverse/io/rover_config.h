@@ -1,0 +1,92 @@
+// rover.yaml: sensor set-up, noise defaults, gravity, sun direction, joint ↔ column map.
+//
+// Every default lives in this header (the one place docs/log-format.md points to). Units are
+// in the key names. A missing key takes its default; a key of the wrong type or out of range
+// is an InputError naming the key.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "traverse/core/types.h"
+
+namespace traverse::io {
+
+enum class GyroAxes { kHeadingOnly, kThreeAxis };
+
+struct GyroConfig {
+  GyroAxes axes = GyroAxes::kHeadingOnly;  ///< `axes: z` (B_g = [0 0 1], K-13) or `xyz`
+  double noise_rad_s = 0.0031;             ///< white noise, 1σ per sample (R §4.3: 0.0031 rad/s)
+  double bias_random_walk_rad_s_per_sqrt_s = 1e-5;  ///< bias random walk density (K-9)
+  double initial_bias_sigma_rad_s = 0.005;          ///< prior σ of the bias before any rest
+};
+
+struct SunSensorConfig {
+  Mat3d R_body_sensor = Mat3d::Identity();  ///< `mounting_rpy_rad` (sensor → body)
+  double field_of_view_rad = 2.7925268;     ///< full cone angle: 160° (K §1.3, WASS)
+  double noise = 0.005;                     ///< 1σ of s1, s2 (dimensionless; ≈0.45° per 0.005)
+};
+
+struct AccelConfig {
+  Vec3d lever_arm_m = Vec3d::Zero();  ///< L^b: body origin → accelerometer (K-10)
+  double noise_mps2 = 0.01;           ///< white noise, 1σ per sample
+};
+
+/// Sun direction in the site frame: fixed, or azimuth/elevation over time.
+struct SunConfig {
+  Vec3d direction_site = Vec3d(-1.0, 1.0, 1.0).normalized();  ///< K §4.1
+  /// Optional table rows (t_s, azimuth_rad, elevation_rad); azimuth from +x towards +y.
+  std::vector<Vec3d> azimuth_elevation;
+  /// Unit sun vector in the site frame at time t (linear interpolation of the table).
+  Vec3d directionAt(double t) const;
+};
+
+/// Slip-constraint noise per component (K-17's n_i), 1σ per joint sample.
+struct SlipNoiseConfig {
+  double longitudinal_mps = 0.004;
+  double lateral_mps = 0.004;
+  double normal_mps = 0.004;
+  double spin_rad_s = 0.02;
+};
+
+/// Process-model parameters (K-1, K-2, K-8, K-9).
+struct ProcessConfig {
+  double contact_angle_time_constant_s = 2.0;    ///< A_ξ = −1/τ (K-8)
+  double contact_angle_noise_rad_per_sqrt_s = 0.15;  ///< n_ξ density
+  double velocity_time_constant_s = 1.0;         ///< A_v = −1/τ (K-1)
+  double velocity_noise_mps2_per_sqrt_hz = 0.05; ///< n_v density
+  double rate_time_constant_s = 1.0;             ///< A_ω = −1/τ (K-2)
+  double rate_noise_rad_s2_per_sqrt_hz = 0.05;   ///< n_ω density
+};
+
+struct JointSensorConfig {
+  double angle_noise_rad = 0.001;  ///< potentiometer/encoder 1σ
+  int rate_filter_half_window = 3; ///< see rover/joint_rates.h
+};
+
+struct RoverConfig {
+  int format = 1;
+  std::string name = "rover";
+  std::string urdf_file = "rover.urdf";
+  /// joints.csv column → URDF joint name; columns not listed use the column name itself.
+  std::map<std::string, std::string> joint_names;
+  std::optional<double> turn_centre_x_m;  ///< default: mean x of the unsteered wheels
+  double gravity_mps2 = 9.80665;
+  GyroConfig gyro;
+  SunSensorConfig sun_sensor;
+  AccelConfig accel;
+  SunConfig sun;
+  SlipNoiseConfig slip_noise;
+  ProcessConfig process;
+  JointSensorConfig joints;
+};
+
+/// Reads and validates rover.yaml (errors: InputError naming file and key).
+RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file);
+/// Writes a rover.yaml that loadRoverConfig reads back to the same values.
+void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& config);
+
+}  // namespace traverse::io

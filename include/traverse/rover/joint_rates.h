@@ -1,0 +1,26 @@
+// Joint rates from sampled joint angles by smoothing and differencing (K §3: "simple smoothing
+// and differencing").
+//
+// Filter: at every sample k a quadratic a + b τ + c τ² (τ = t − t_k) is fitted by least squares
+// to the samples k−h … k+h (the window is shifted, not shrunk, at the ends of the record), and
+// the rate is b. For uniform sampling this is the Savitzky–Golay first-derivative filter of
+// order 2; using the true timestamps keeps it correct when samples are irregular or missing.
+// It is exact for angles quadratic in time, and its noise gain for white angle noise σ at
+// period Δt is σ·sqrt(3/(h(h+1)(2h+1)))/Δt for interior samples.
+#pragma once
+
+#include <span>
+
+#include <Eigen/Core>
+
+namespace traverse::rover {
+
+struct JointRateFilter {
+  int half_window = 3;  ///< h: samples on each side (window 2h+1)
+};
+
+/// Rates (per second) of each column of `angles` (rows = samples), sampled at times `t`.
+Eigen::MatrixXd jointRates(std::span<const double> t, const Eigen::MatrixXd& angles,
+                           const JointRateFilter& filter = {});
+
+}  // namespace traverse::rover

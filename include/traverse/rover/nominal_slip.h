@@ -1,0 +1,37 @@
+// Deterministic (nominal) slip for steering and turning (K §2.3.4).
+//
+// A turning rover slips even when every wheel is perfectly controlled: every wheel spins about
+// its contact normal at the body's yaw rate (plus its steering rate), and the unsteered bogie
+// wheels, whose axles lie on parallel lines offset in x, slide sideways unless the centre of
+// rotation is on their axle line. The paper computes these for Ackermann motion on flat ground
+// and uses them as the nominal t_m even on rough terrain; so does traverse.
+#pragma once
+
+#include "traverse/rover/slip_constraint.h"
+
+namespace traverse::rover {
+
+/// Body twist of a rigid planar motion with forward speed v_x (m/s) and yaw rate w_z (rad/s)
+/// whose instantaneous centre of rotation lies on the line x = geometry.turn_centre_x:
+/// v = (v_x, −w_z·x_c, 0), ω = (0, 0, w_z). A turn in place is v_x = 0.
+inline Twistd nominalBodyTwist(const RoverGeometry& geometry, double v_x, double w_z) {
+  Twistd V;
+  V << v_x, -w_z * geometry.turn_centre_x, 0.0, 0.0, 0.0, w_z;
+  return V;
+}
+
+/// Nominal slip of one wheel: the slip constraint on flat ground (ξ = 0) for the nominal body
+/// twist, keeping what rolling cannot absorb — the transverse slip (row 1) and the spin about
+/// the normal (row 3) — and zero longitudinal and normal slip (the wheel rolls and stays on
+/// the ground). `joint_twist` carries the steering rate's contribution to the spin.
+inline Vec4d nominalSlip(const WheelKinematics& wk, double radius, const Twistd& body_twist,
+                         const Twistd& joint_twist) {
+  const Vec3d v = body_twist.head<3>();
+  const Vec3d w = body_twist.tail<3>();
+  Vec4d t = slipConstraint<double>(wk.T_body_wheel, radius, joint_twist, v, w, 0.0);
+  t[0] = 0.0;
+  t[2] = 0.0;
+  return t;
+}
+
+}  // namespace traverse::rover

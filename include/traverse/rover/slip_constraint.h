@@ -1,0 +1,54 @@
+// The kinematic slip constraint (K-17 … K-20; O-8 … O-10).
+//
+//   t_i = Bᵀ Ad⁻¹_{g_{s l_i}}(γ, λ, ξ_i) ( [v; ω] + J^s_{s f_i}(γ, λ) q̇ )
+//
+// [v; ω] is the body twist (body-frame velocity of the body origin and body angular rate),
+// J q̇ the wheel's twist relative to the body (joint_twist below, computed once per joint
+// sample from the deterministic joint angles and rates), g_{s l_i} the contact frame. With the
+// pure-rolling B of K-20, t_i = (slip velocity of the wheel's contact point along the contact
+// frame's x, y, z; spin about the contact normal) — zero for pure rolling.
+#pragma once
+
+#include "traverse/core/se3.h"
+#include "traverse/rover/kinematics.h"
+
+namespace traverse::rover {
+
+/// Rows of the slip constraint per wheel (K-20: three translations and the normal spin).
+inline constexpr int kSlipRows = 4;
+
+/// Slip of one wheel, templated on the state-dependent part (v, ω, ξ).
+/// `joint_twist` = J^s_{s f_i} q̇ (body frame), see wheelJointTwist().
+template <typename T>
+Vec4<T> slipConstraint(const Posed& T_body_wheel, double radius, const Twistd& joint_twist,
+                       const Vec3<T>& v_body, const Vec3<T>& w_body, const T& xi) {
+  const Pose<T> g_sl = contactFrame(T_body_wheel, radius, xi);
+  Twist<T> V;
+  V.template head<3>() = v_body + joint_twist.head<3>().cast<T>();
+  V.template tail<3>() = w_body + joint_twist.tail<3>().cast<T>();
+  const Twist<T> V_contact = applyAdjointInverse(g_sl, V);  // Ad⁻¹ (K-18)
+  // Bᵀ of K-20 keeps rows 1, 2, 3 and 6.
+  return Vec4<T>(V_contact[0], V_contact[1], V_contact[2], V_contact[5]);
+}
+
+/// J^s_{s f_i} q̇: the wheel's twist relative to the body caused by the joint rates.
+inline Twistd wheelJointTwist(const WheelKinematics& wk, const JointVectord& q_dot) {
+  return wk.J * q_dot;
+}
+
+/// All six wheels stacked (24 rows: wheel 1 rows 0-3, …).
+template <typename T>
+Eigen::Matrix<T, kSlipRows * kNumWheels, 1> slipConstraintAll(
+    const RoverGeometry& geometry, const RoverKinematics& kin,
+    const std::array<Twistd, kNumWheels>& joint_twists, const Vec3<T>& v_body,
+    const Vec3<T>& w_body, const Eigen::Matrix<T, kNumWheels, 1>& xi) {
+  Eigen::Matrix<T, kSlipRows * kNumWheels, 1> t;
+  for (int i = 0; i < kNumWheels; ++i) {
+    t.template segment<kSlipRows>(kSlipRows * i) =
+        slipConstraint(kin[i].T_body_wheel, geometry.wheels[i].radius, joint_twists[i], v_body,
+                       w_body, xi[i]);
+  }
+  return t;
+}
+
+}  // namespace traverse::rover

@@ -1,0 +1,38 @@
+#include "traverse/rover/joint_rates.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include <Eigen/Dense>
+
+namespace traverse::rover {
+
+Eigen::MatrixXd jointRates(std::span<const double> t, const Eigen::MatrixXd& angles,
+                           const JointRateFilter& filter) {
+  const Eigen::Index n = angles.rows();
+  if (static_cast<Eigen::Index>(t.size()) != n) {
+    throw std::invalid_argument("jointRates: time and angle sample counts differ");
+  }
+  Eigen::MatrixXd rates = Eigen::MatrixXd::Zero(n, angles.cols());
+  if (n < 2) return rates;
+  // With fewer than three samples only a straight line can be fitted.
+  const int order = n >= 3 ? 2 : 1;
+  const Eigen::Index h = std::max<Eigen::Index>(filter.half_window, order);
+  const Eigen::Index width = std::min<Eigen::Index>(2 * h + 1, n);
+  Eigen::MatrixXd A(width, order + 1);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Index first = std::clamp<Eigen::Index>(k - h, 0, n - width);
+    for (Eigen::Index r = 0; r < width; ++r) {
+      const double tau = t[first + r] - t[k];
+      A(r, 0) = 1.0;
+      A(r, 1) = tau;
+      if (order == 2) A(r, 2) = tau * tau;
+    }
+    // Row 1 of the pseudo-inverse gives the derivative weights for every channel at once.
+    const Eigen::MatrixXd pinv = A.colPivHouseholderQr().solve(Eigen::MatrixXd::Identity(width, width));
+    rates.row(k) = pinv.row(1) * angles.middleRows(first, width);
+  }
+  return rates;
+}
+
+}  // namespace traverse::rover
