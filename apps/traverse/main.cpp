@@ -1,0 +1,40 @@
+// traverse — reconstruct a rover traverse from logged telemetry (docs/cli.md).
+#include <iostream>
+#include <vector>
+
+#include "commands.h"
+#include "traverse/core/error.h"
+
+int main(int argc, char** argv) {
+  using namespace traverse;
+  CLI::App app{"traverse: rover trajectory reconstruction (dead reckoning, EKF, batch smoother)"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "traverse 0.1.0");
+  app::GlobalOptions global;
+  app.add_flag("-q,--quiet", global.quiet, "Print nothing but errors");
+  std::vector<app::Command> commands = {app::addInfoCommand(app, global)};
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "traverse: " << e.what() << " (see --help)\n";
+    return 2;
+  }
+  try {
+    for (const app::Command& run : commands) {
+      if (const int rc = run(); rc >= 0) return rc;
+    }
+  } catch (const InputError& e) {
+    std::cerr << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "traverse: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 1;
+}

@@ -1,0 +1,298 @@
+// rover.yaml reading and writing (yaml-cpp). Strict: unknown keys, wrong types and values out
+// of range are InputErrors naming the file, the line and the dotted key.
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <yaml-cpp/yaml.h>
+
+#include "traverse/core/error.h"
+#include "traverse/core/so3.h"
+#include "traverse/io/rover_config.h"
+
+namespace traverse::io {
+namespace {
+
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const YAML::Node& n, const std::string& key, const std::string& what) const {
+    const long line = n.IsDefined() ? static_cast<long>(n.Mark().line) + 1 : 0;
+    throw InputError(file_, line, "key '" + key + "': " + what);
+  }
+
+  /// Checks that a map holds only the given keys (typos are errors, not silent defaults).
+  void onlyKeys(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& keys) const {
+    if (!map.IsMap()) fail(map, prefix, "expected a mapping");
+    for (const auto& kv : map) {
+      const std::string k = kv.first.as<std::string>();
+      if (!keys.count(k)) fail(kv.first, prefix.empty() ? k : prefix + "." + k, "unknown key");
+    }
+  }
+
+  double number(const YAML::Node& map, const std::string& prefix, const std::string& key,
+                double value, double lo, double hi) const {
+    const YAML::Node n = map[key];
+    if (!n.IsDefined() || n.IsNull()) return value;
+    const std::string name = join(prefix, key);
+    double v = 0.0;
+    if (!n.IsScalar() || !YAML::convert<double>::decode(n, v)) fail(n, name, "expected a number");
+    if (!std::isfinite(v)) fail(n, name, "must be finite");
+    if (v < lo || v > hi) {
+      std::ostringstream os;
+      os << "value " << v << " out of range [" << lo << ", " << hi << "]";
+      fail(n, name, os.str());
+    }
+    return v;
+  }
+
+  int integer(const YAML::Node& map, const std::string& prefix, const std::string& key, int value,
+              int lo, int hi) const {
+    const YAML::Node n = map[key];
+    if (!n.IsDefined() || n.IsNull()) return value;
+    int v = 0;
+    if (!n.IsScalar() || !YAML::convert<int>::decode(n, v)) fail(n, join(prefix, key), "expected an integer");
+    if (v < lo || v > hi) fail(n, join(prefix, key), "value " + std::to_string(v) + " out of range");
+    return v;
+  }
+
+  std::string string(const YAML::Node& map, const std::string& prefix, const std::string& key,
+                     std::string value) const {
+    const YAML::Node n = map[key];
+    if (!n.IsDefined() || n.IsNull()) return value;
+    if (!n.IsScalar()) fail(n, join(prefix, key), "expected a string");
+    return n.as<std::string>();
+  }
+
+  Vec3d vec3(const YAML::Node& map, const std::string& prefix, const std::string& key, Vec3d value) const {
+    const YAML::Node n = map[key];
+    if (!n.IsDefined() || n.IsNull()) return value;
+    if (!n.IsSequence() || n.size() != 3) fail(n, join(prefix, key), "expected a list of 3 numbers");
+    for (int i = 0; i < 3; ++i) {
+      double v = 0.0;
+      if (!n[i].IsScalar() || !YAML::convert<double>::decode(n[i], v) || !std::isfinite(v)) {
+        fail(n, join(prefix, key), "expected a list of 3 finite numbers");
+      }
+      value[i] = v;
+    }
+    return value;
+  }
+
+  YAML::Node section(const YAML::Node& root, const std::string& key, const std::set<std::string>& keys) const {
+    const YAML::Node n = root[key];
+    if (!n.IsDefined() || n.IsNull()) return YAML::Node(YAML::NodeType::Map);
+    onlyKeys(n, key, keys);
+    return n;
+  }
+
+  static std::string join(const std::string& prefix, const std::string& key) {
+    return prefix.empty() ? key : prefix + "." + key;
+  }
+
+ private:
+  std::string file_;
+};
+
+void readGyro(const Reader& r, const YAML::Node& root, GyroConfig& g) {
+  const YAML::Node n = r.section(root, "gyro",
+      {"axes", "noise_rad_s", "bias_random_walk_rad_s_per_sqrt_s", "initial_bias_sigma_rad_s"});
+  const std::string axes = r.string(n, "gyro", "axes", g.axes == GyroAxes::kThreeAxis ? "xyz" : "z");
+  if (axes == "z") {
+    g.axes = GyroAxes::kHeadingOnly;
+  } else if (axes == "xyz") {
+    g.axes = GyroAxes::kThreeAxis;
+  } else {
+    r.fail(n["axes"], "gyro.axes", "expected 'z' (heading only) or 'xyz', got '" + axes + "'");
+  }
+  g.noise_rad_s = r.number(n, "gyro", "noise_rad_s", g.noise_rad_s, 0.0, 10.0);
+  g.bias_random_walk_rad_s_per_sqrt_s = r.number(n, "gyro", "bias_random_walk_rad_s_per_sqrt_s",
+                                                 g.bias_random_walk_rad_s_per_sqrt_s, 0.0, 1.0);
+  g.initial_bias_sigma_rad_s =
+      r.number(n, "gyro", "initial_bias_sigma_rad_s", g.initial_bias_sigma_rad_s, 0.0, 1.0);
+}
+
+void readSensors(const Reader& r, const YAML::Node& root, RoverConfig& c) {
+  const YAML::Node s = r.section(root, "sun_sensor", {"mounting_rpy_rad", "field_of_view_rad", "noise"});
+  const Vec3d rpy = r.vec3(s, "sun_sensor", "mounting_rpy_rad", so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));
+  c.sun_sensor.R_body_sensor = so3::fromRollPitchYaw(rpy.x(), rpy.y(), rpy.z()).toRotationMatrix();
+  c.sun_sensor.field_of_view_rad =
+      r.number(s, "sun_sensor", "field_of_view_rad", c.sun_sensor.field_of_view_rad, 0.01, M_PI);
+  c.sun_sensor.noise = r.number(s, "sun_sensor", "noise", c.sun_sensor.noise, 0.0, 1.0);
+
+  const YAML::Node a = r.section(root, "accelerometer", {"lever_arm_m", "noise_mps2"});
+  c.accel.lever_arm_m = r.vec3(a, "accelerometer", "lever_arm_m", c.accel.lever_arm_m);
+  c.accel.noise_mps2 = r.number(a, "accelerometer", "noise_mps2", c.accel.noise_mps2, 0.0, 100.0);
+
+  const YAML::Node j = r.section(root, "joint_sensors", {"angle_noise_rad", "rate_filter_half_window"});
+  c.joints.angle_noise_rad = r.number(j, "joint_sensors", "angle_noise_rad", c.joints.angle_noise_rad, 0.0, 1.0);
+  c.joints.rate_filter_half_window =
+      r.integer(j, "joint_sensors", "rate_filter_half_window", c.joints.rate_filter_half_window, 1, 100);
+}
+
+void readSun(const Reader& r, const YAML::Node& root, SunConfig& sun) {
+  const YAML::Node n = r.section(root, "sun", {"direction_site", "azimuth_elevation"});
+  const Vec3d d = r.vec3(n, "sun", "direction_site", sun.direction_site);
+  if (d.norm() < 1e-9) r.fail(n["direction_site"], "sun.direction_site", "must not be zero");
+  sun.direction_site = d.normalized();
+  const YAML::Node table = n["azimuth_elevation"];
+  if (!table.IsDefined() || table.IsNull()) return;
+  if (!table.IsSequence() || table.size() == 0) {
+    r.fail(table, "sun.azimuth_elevation", "expected a list of [t_s, azimuth_rad, elevation_rad]");
+  }
+  sun.azimuth_elevation.clear();
+  for (size_t i = 0; i < table.size(); ++i) {
+    YAML::Node row(YAML::NodeType::Map);
+    row["v"] = table[i];
+    const Vec3d v = r.vec3(row, "sun.azimuth_elevation", "v", Vec3d::Zero());
+    if (!sun.azimuth_elevation.empty() && v.x() <= sun.azimuth_elevation.back().x()) {
+      r.fail(table[i], "sun.azimuth_elevation", "times must be strictly increasing");
+    }
+    sun.azimuth_elevation.push_back(v);
+  }
+}
+
+void readNoise(const Reader& r, const YAML::Node& root, RoverConfig& c) {
+  const YAML::Node s = r.section(root, "slip_noise", {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s"});
+  auto& sn = c.slip_noise;
+  sn.longitudinal_mps = r.number(s, "slip_noise", "longitudinal_mps", sn.longitudinal_mps, 1e-9, 10.0);
+  sn.lateral_mps = r.number(s, "slip_noise", "lateral_mps", sn.lateral_mps, 1e-9, 10.0);
+  sn.normal_mps = r.number(s, "slip_noise", "normal_mps", sn.normal_mps, 1e-9, 10.0);
+  sn.spin_rad_s = r.number(s, "slip_noise", "spin_rad_s", sn.spin_rad_s, 1e-9, 10.0);
+
+  const YAML::Node p = r.section(root, "process",
+      {"contact_angle_time_constant_s", "contact_angle_noise_rad_per_sqrt_s", "velocity_time_constant_s",
+       "velocity_noise_mps2_per_sqrt_hz", "rate_time_constant_s", "rate_noise_rad_s2_per_sqrt_hz"});
+  auto& pc = c.process;
+  pc.contact_angle_time_constant_s =
+      r.number(p, "process", "contact_angle_time_constant_s", pc.contact_angle_time_constant_s, 1e-3, 1e6);
+  pc.contact_angle_noise_rad_per_sqrt_s = r.number(p, "process", "contact_angle_noise_rad_per_sqrt_s",
+                                                   pc.contact_angle_noise_rad_per_sqrt_s, 0.0, 10.0);
+  pc.velocity_time_constant_s =
+      r.number(p, "process", "velocity_time_constant_s", pc.velocity_time_constant_s, 1e-3, 1e6);
+  pc.velocity_noise_mps2_per_sqrt_hz = r.number(p, "process", "velocity_noise_mps2_per_sqrt_hz",
+                                                pc.velocity_noise_mps2_per_sqrt_hz, 0.0, 100.0);
+  pc.rate_time_constant_s = r.number(p, "process", "rate_time_constant_s", pc.rate_time_constant_s, 1e-3, 1e6);
+  pc.rate_noise_rad_s2_per_sqrt_hz = r.number(p, "process", "rate_noise_rad_s2_per_sqrt_hz",
+                                              pc.rate_noise_rad_s2_per_sqrt_hz, 0.0, 100.0);
+}
+
+}  // namespace
+
+Vec3d SunConfig::directionAt(double t) const {
+  if (azimuth_elevation.empty()) return direction_site;
+  auto toVec = [](double az, double el) {
+    return Vec3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+  };
+  const auto& tab = azimuth_elevation;
+  if (t <= tab.front().x()) return toVec(tab.front().y(), tab.front().z());
+  if (t >= tab.back().x()) return toVec(tab.back().y(), tab.back().z());
+  size_t k = 1;
+  while (tab[k].x() < t) ++k;
+  const double a = (t - tab[k - 1].x()) / (tab[k].x() - tab[k - 1].x());
+  const Vec3d ae = (1.0 - a) * tab[k - 1] + a * tab[k];
+  return toVec(ae.y(), ae.z());
+}
+
+RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
+  const std::string file = yaml_file.string();
+  if (!std::filesystem::exists(yaml_file)) throw InputError(file, 0, "required file is missing");
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(file);
+  } catch (const YAML::Exception& e) {
+    throw InputError(file, e.mark.is_null() ? 0 : e.mark.line + 1, "unreadable YAML: " + e.msg);
+  }
+  Reader r(file);
+  if (!root.IsMap()) throw InputError(file, 0, "expected a YAML mapping at the top level");
+  r.onlyKeys(root, "",
+             {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "sun_sensor",
+              "accelerometer", "sun", "slip_noise", "process", "joint_sensors"});
+  RoverConfig c;
+  if (!root["format"].IsDefined()) throw InputError(file, 0, "key 'format': missing (expected 1)");
+  c.format = r.integer(root, "", "format", 0, 0, 1000);
+  if (c.format != 1) r.fail(root["format"], "format", "unsupported format version " + std::to_string(c.format) + " (this reader knows 1)");
+  c.name = r.string(root, "", "name", c.name);
+  c.urdf_file = r.string(root, "", "urdf", c.urdf_file);
+  if (const YAML::Node j = root["joints"]; j.IsDefined() && !j.IsNull()) {
+    if (!j.IsMap()) r.fail(j, "joints", "expected a mapping column -> URDF joint name");
+    for (const auto& kv : j) {
+      if (!kv.second.IsScalar()) r.fail(kv.second, "joints." + kv.first.as<std::string>(), "expected a string");
+      c.joint_names[kv.first.as<std::string>()] = kv.second.as<std::string>();
+    }
+  }
+  if (root["turn_centre_x_m"].IsDefined()) c.turn_centre_x_m = r.number(root, "", "turn_centre_x_m", 0.0, -100.0, 100.0);
+  c.gravity_mps2 = r.number(root, "", "gravity_mps2", c.gravity_mps2, 0.1, 100.0);
+  readGyro(r, root, c.gyro);
+  readSensors(r, root, c);
+  readSun(r, root, c.sun);
+  readNoise(r, root, c);
+  return c;
+}
+
+void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& c) {
+  YAML::Emitter out;
+  out.SetDoublePrecision(17);
+  auto vec = [&](const Vec3d& v) { out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq; };
+  out << YAML::BeginMap;
+  out << YAML::Key << "format" << YAML::Value << c.format;
+  out << YAML::Key << "name" << YAML::Value << c.name;
+  out << YAML::Key << "urdf" << YAML::Value << c.urdf_file;
+  if (!c.joint_names.empty()) {
+    out << YAML::Key << "joints" << YAML::Value << YAML::BeginMap;
+    for (const auto& [k, v] : c.joint_names) out << YAML::Key << k << YAML::Value << v;
+    out << YAML::EndMap;
+  }
+  if (c.turn_centre_x_m) out << YAML::Key << "turn_centre_x_m" << YAML::Value << *c.turn_centre_x_m;
+  out << YAML::Key << "gravity_mps2" << YAML::Value << c.gravity_mps2;
+  out << YAML::Key << "gyro" << YAML::Value << YAML::BeginMap
+      << YAML::Key << "axes" << YAML::Value << (c.gyro.axes == GyroAxes::kThreeAxis ? "xyz" : "z")
+      << YAML::Key << "noise_rad_s" << YAML::Value << c.gyro.noise_rad_s
+      << YAML::Key << "bias_random_walk_rad_s_per_sqrt_s" << YAML::Value << c.gyro.bias_random_walk_rad_s_per_sqrt_s
+      << YAML::Key << "initial_bias_sigma_rad_s" << YAML::Value << c.gyro.initial_bias_sigma_rad_s << YAML::EndMap;
+  out << YAML::Key << "sun_sensor" << YAML::Value << YAML::BeginMap << YAML::Key << "mounting_rpy_rad" << YAML::Value;
+  vec(so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));
+  out << YAML::Key << "field_of_view_rad" << YAML::Value << c.sun_sensor.field_of_view_rad
+      << YAML::Key << "noise" << YAML::Value << c.sun_sensor.noise << YAML::EndMap;
+  out << YAML::Key << "accelerometer" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm_m" << YAML::Value;
+  vec(c.accel.lever_arm_m);
+  out << YAML::Key << "noise_mps2" << YAML::Value << c.accel.noise_mps2 << YAML::EndMap;
+  out << YAML::Key << "sun" << YAML::Value << YAML::BeginMap << YAML::Key << "direction_site" << YAML::Value;
+  vec(c.sun.direction_site);
+  if (!c.sun.azimuth_elevation.empty()) {
+    out << YAML::Key << "azimuth_elevation" << YAML::Value << YAML::BeginSeq;
+    for (const Vec3d& row : c.sun.azimuth_elevation) vec(row);
+    out << YAML::EndSeq;
+  }
+  out << YAML::EndMap;
+  const auto& s = c.slip_noise;
+  out << YAML::Key << "slip_noise" << YAML::Value << YAML::BeginMap
+      << YAML::Key << "longitudinal_mps" << YAML::Value << s.longitudinal_mps
+      << YAML::Key << "lateral_mps" << YAML::Value << s.lateral_mps
+      << YAML::Key << "normal_mps" << YAML::Value << s.normal_mps
+      << YAML::Key << "spin_rad_s" << YAML::Value << s.spin_rad_s << YAML::EndMap;
+  const auto& p = c.process;
+  out << YAML::Key << "process" << YAML::Value << YAML::BeginMap
+      << YAML::Key << "contact_angle_time_constant_s" << YAML::Value << p.contact_angle_time_constant_s
+      << YAML::Key << "contact_angle_noise_rad_per_sqrt_s" << YAML::Value << p.contact_angle_noise_rad_per_sqrt_s
+      << YAML::Key << "velocity_time_constant_s" << YAML::Value << p.velocity_time_constant_s
+      << YAML::Key << "velocity_noise_mps2_per_sqrt_hz" << YAML::Value << p.velocity_noise_mps2_per_sqrt_hz
+      << YAML::Key << "rate_time_constant_s" << YAML::Value << p.rate_time_constant_s
+      << YAML::Key << "rate_noise_rad_s2_per_sqrt_hz" << YAML::Value << p.rate_noise_rad_s2_per_sqrt_hz
+      << YAML::EndMap;
+  out << YAML::Key << "joint_sensors" << YAML::Value << YAML::BeginMap
+      << YAML::Key << "angle_noise_rad" << YAML::Value << c.joints.angle_noise_rad
+      << YAML::Key << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window << YAML::EndMap;
+  out << YAML::EndMap;
+
+  const std::filesystem::path tmp = yaml_file.string() + ".tmp";
+  {
+    std::ofstream f(tmp);
+    f << "# traverse rover description, log format 1 (docs/log-format.md)\n" << out.c_str() << "\n";
+    if (!f) throw std::runtime_error("cannot write " + tmp.string());
+  }
+  std::filesystem::rename(tmp, yaml_file);
+}
+
+}  // namespace traverse::io
