@@ -6,6 +6,7 @@
 #include <map>
 #include <sstream>
 
+#include <console_bridge/console.h>
 #include <urdf_parser/urdf_parser.h>
 
 #include "traverse/core/error.h"
@@ -50,6 +51,8 @@ std::map<std::string, int> coordinateMap(const RoverConfig& config) {
 
 rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfig& config,
                                         const std::string& source) {
+  // urdfdom reports parse problems through console_bridge; we report them as one InputError.
+  console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
   const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
   if (!model) throw InputError(source, 0, "unreadable URDF (urdfdom could not parse it)");
   const auto coords = coordinateMap(config);

@@ -1,0 +1,81 @@
+// Rocker-bogie contact configuration on a terrain (K §4: the simulator "solves for the contact
+// configuration for a set of closely spaced points along a specified rover path").
+//
+// Given the body's horizontal position, heading and steering angles, find the body height,
+// roll, pitch and the suspension angles γ0, γ1, γ2 such that every wheel (a thin disc of radius
+// r in its wheel frame's x-z plane) touches the terrain: the lowest point of its rim relative to
+// the surface is on the surface, and there the rim is tangent to it. Each wheel's contact angle
+// ξ_i is where that happens (rover/kinematics.h convention).
+#pragma once
+
+#include <array>
+#include <stdexcept>
+
+#include "traverse/rover/kinematics.h"
+#include "traverse/sim/terrain.h"
+
+namespace traverse::sim {
+
+struct ContactState {
+  double z = 0.0, roll = 0.0, pitch = 0.0;  ///< body origin height (site), Z-Y-X angles (rad)
+  Vec3d gamma = Vec3d::Zero();              ///< γ0, γ1, γ2
+  std::array<double, rover::kNumWheels> xi{};  ///< contact angles (rad)
+};
+
+struct ContactSolverOptions {
+  double tolerance_m = 1e-9;   ///< |gap| of every wheel at convergence
+  int max_iterations = 40;
+  double max_joint_angle_rad = 1.2;  ///< beyond this the suspension has no physical solution
+  int rim_scan_points = 61;    ///< global check of each wheel's lowest rim point
+};
+
+/// Where a wheel touches: the gap between rim and terrain along the vertical, and the angle
+/// between the rim's tangent and the surface's tangent plane, at the contact; and the smallest
+/// gap anywhere on the rim's lower half (negative = the wheel is below the surface).
+struct WheelContactCheck {
+  double gap_m = 0.0;
+  double tangency_rad = 0.0;
+  double min_rim_gap_m = 0.0;
+};
+
+class ContactError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class ContactSolver {
+ public:
+  ContactSolver(const rover::RoverGeometry& geometry, const Terrain& terrain, ContactSolverOptions options = {});
+
+  /// Solves at (x, y, yaw) with the given steering angles, starting from `guess` (use
+  /// initialGuess() for the first point of a path). Throws ContactError naming the pose.
+  ContactState solve(double x, double y, double yaw, const Vec2d& steering, const ContactState& guess) const;
+
+  /// A starting point from the terrain under the body: level with the local surface normal.
+  ContactState initialGuess(double x, double y, double yaw) const;
+
+  /// Checks a solved state (for tests and for the simulator's own assertions).
+  std::array<WheelContactCheck, rover::kNumWheels> check(double x, double y, double yaw, const Vec2d& steering,
+                                                         const ContactState& state) const;
+
+  /// Site pose of the body for a state.
+  static Posed bodyPose(double x, double y, double yaw, const ContactState& s);
+
+ private:
+  struct Rim {
+    Vec3d centre, x_axis, z_axis;
+    double radius;
+  };
+  std::array<Rim, rover::kNumWheels> rims(const Posed& T_site_body, const rover::JointVectord& q) const;
+  double gap(const Rim& rim, double xi) const;
+  double gapSlope(const Rim& rim, double xi) const;
+  double lowestRimPoint(const Rim& rim, double xi_start) const;
+  rover::JointVectord joints(const Vec3d& gamma, const Vec2d& steering) const;
+
+  const rover::RoverGeometry& geometry_;
+  const Terrain& terrain_;
+  ContactSolverOptions options_;
+  double centre_height_ = 0.0;  ///< wheel-centre z below the body at zero joint angles (mean)
+};
+
+}  // namespace traverse::sim
