@@ -2,6 +2,7 @@
 // returns the callback that runs it; exit codes: 0 success, 2 bad input or usage, 1 other.
 #pragma once
 
+#include <filesystem>
 #include <functional>
 
 #include <CLI/CLI.hpp>
@@ -14,6 +15,10 @@ struct GlobalOptions {
 
 using Command = std::function<int()>;
 
+/// datasets/: $TRAVERSE_DATASETS_DIR, else the installed share/traverse, else the source tree's.
+std::filesystem::path datasetsDir();
+
 Command addInfoCommand(CLI::App& app, const GlobalOptions& global);
+Command addSimulateCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace traverse::app

@@ -1,9 +1,25 @@
 // traverse — reconstruct a rover traverse from logged telemetry (docs/cli.md).
+#include <cstdlib>
 #include <iostream>
 #include <vector>
 
 #include "commands.h"
 #include "traverse/core/error.h"
+
+namespace traverse::app {
+
+std::filesystem::path datasetsDir() {
+  if (const char* env = std::getenv("TRAVERSE_DATASETS_DIR")) return env;
+  std::error_code ec;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const auto installed = exe.parent_path().parent_path() / "share" / "traverse";
+    if (std::filesystem::exists(installed / "rovers")) return installed;
+  }
+  return std::filesystem::path(TRAVERSE_SOURCE_DIR) / "datasets";
+}
+
+}  // namespace traverse::app
 
 int main(int argc, char** argv) {
   using namespace traverse;
@@ -12,7 +28,8 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "traverse 0.1.0");
   app::GlobalOptions global;
   app.add_flag("-q,--quiet", global.quiet, "Print nothing but errors");
-  std::vector<app::Command> commands = {app::addInfoCommand(app, global)};
+  app.fallthrough();  // global flags (--quiet) also after the subcommand
+  std::vector<app::Command> commands = {app::addInfoCommand(app, global), app::addSimulateCommand(app, global)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -10,92 +10,14 @@
 #include "traverse/core/error.h"
 #include "traverse/core/so3.h"
 #include "traverse/io/rover_config.h"
+#include "io/yaml_reader.h"
 
 namespace traverse::io {
 namespace {
 
-class Reader {
- public:
-  explicit Reader(std::string file) : file_(std::move(file)) {}
+using detail::YamlReader;
 
-  [[noreturn]] void fail(const YAML::Node& n, const std::string& key, const std::string& what) const {
-    const long line = n.IsDefined() ? static_cast<long>(n.Mark().line) + 1 : 0;
-    throw InputError(file_, line, "key '" + key + "': " + what);
-  }
-
-  /// Checks that a map holds only the given keys (typos are errors, not silent defaults).
-  void onlyKeys(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& keys) const {
-    if (!map.IsMap()) fail(map, prefix, "expected a mapping");
-    for (const auto& kv : map) {
-      const std::string k = kv.first.as<std::string>();
-      if (!keys.count(k)) fail(kv.first, prefix.empty() ? k : prefix + "." + k, "unknown key");
-    }
-  }
-
-  double number(const YAML::Node& map, const std::string& prefix, const std::string& key,
-                double value, double lo, double hi) const {
-    const YAML::Node n = map[key];
-    if (!n.IsDefined() || n.IsNull()) return value;
-    const std::string name = join(prefix, key);
-    double v = 0.0;
-    if (!n.IsScalar() || !YAML::convert<double>::decode(n, v)) fail(n, name, "expected a number");
-    if (!std::isfinite(v)) fail(n, name, "must be finite");
-    if (v < lo || v > hi) {
-      std::ostringstream os;
-      os << "value " << v << " out of range [" << lo << ", " << hi << "]";
-      fail(n, name, os.str());
-    }
-    return v;
-  }
-
-  int integer(const YAML::Node& map, const std::string& prefix, const std::string& key, int value,
-              int lo, int hi) const {
-    const YAML::Node n = map[key];
-    if (!n.IsDefined() || n.IsNull()) return value;
-    int v = 0;
-    if (!n.IsScalar() || !YAML::convert<int>::decode(n, v)) fail(n, join(prefix, key), "expected an integer");
-    if (v < lo || v > hi) fail(n, join(prefix, key), "value " + std::to_string(v) + " out of range");
-    return v;
-  }
-
-  std::string string(const YAML::Node& map, const std::string& prefix, const std::string& key,
-                     std::string value) const {
-    const YAML::Node n = map[key];
-    if (!n.IsDefined() || n.IsNull()) return value;
-    if (!n.IsScalar()) fail(n, join(prefix, key), "expected a string");
-    return n.as<std::string>();
-  }
-
-  Vec3d vec3(const YAML::Node& map, const std::string& prefix, const std::string& key, Vec3d value) const {
-    const YAML::Node n = map[key];
-    if (!n.IsDefined() || n.IsNull()) return value;
-    if (!n.IsSequence() || n.size() != 3) fail(n, join(prefix, key), "expected a list of 3 numbers");
-    for (int i = 0; i < 3; ++i) {
-      double v = 0.0;
-      if (!n[i].IsScalar() || !YAML::convert<double>::decode(n[i], v) || !std::isfinite(v)) {
-        fail(n, join(prefix, key), "expected a list of 3 finite numbers");
-      }
-      value[i] = v;
-    }
-    return value;
-  }
-
-  YAML::Node section(const YAML::Node& root, const std::string& key, const std::set<std::string>& keys) const {
-    const YAML::Node n = root[key];
-    if (!n.IsDefined() || n.IsNull()) return YAML::Node(YAML::NodeType::Map);
-    onlyKeys(n, key, keys);
-    return n;
-  }
-
-  static std::string join(const std::string& prefix, const std::string& key) {
-    return prefix.empty() ? key : prefix + "." + key;
-  }
-
- private:
-  std::string file_;
-};
-
-void readGyro(const Reader& r, const YAML::Node& root, GyroConfig& g) {
+void readGyro(const YamlReader& r, const YAML::Node& root, GyroConfig& g) {
   const YAML::Node n = r.section(root, "gyro",
       {"axes", "noise_rad_s", "bias_random_walk_rad_s_per_sqrt_s", "initial_bias_sigma_rad_s"});
   const std::string axes = r.string(n, "gyro", "axes", g.axes == GyroAxes::kThreeAxis ? "xyz" : "z");
@@ -113,7 +35,7 @@ void readGyro(const Reader& r, const YAML::Node& root, GyroConfig& g) {
       r.number(n, "gyro", "initial_bias_sigma_rad_s", g.initial_bias_sigma_rad_s, 0.0, 1.0);
 }
 
-void readSensors(const Reader& r, const YAML::Node& root, RoverConfig& c) {
+void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   const YAML::Node s = r.section(root, "sun_sensor", {"mounting_rpy_rad", "field_of_view_rad", "noise"});
   const Vec3d rpy = r.vec3(s, "sun_sensor", "mounting_rpy_rad", so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));
   c.sun_sensor.R_body_sensor = so3::fromRollPitchYaw(rpy.x(), rpy.y(), rpy.z()).toRotationMatrix();
@@ -131,7 +53,7 @@ void readSensors(const Reader& r, const YAML::Node& root, RoverConfig& c) {
       r.integer(j, "joint_sensors", "rate_filter_half_window", c.joints.rate_filter_half_window, 1, 100);
 }
 
-void readSun(const Reader& r, const YAML::Node& root, SunConfig& sun) {
+void readSun(const YamlReader& r, const YAML::Node& root, SunConfig& sun) {
   const YAML::Node n = r.section(root, "sun", {"direction_site", "azimuth_elevation"});
   const Vec3d d = r.vec3(n, "sun", "direction_site", sun.direction_site);
   if (d.norm() < 1e-9) r.fail(n["direction_site"], "sun.direction_site", "must not be zero");
@@ -153,7 +75,7 @@ void readSun(const Reader& r, const YAML::Node& root, SunConfig& sun) {
   }
 }
 
-void readNoise(const Reader& r, const YAML::Node& root, RoverConfig& c) {
+void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   const YAML::Node s = r.section(root, "slip_noise", {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s"});
   auto& sn = c.slip_noise;
   sn.longitudinal_mps = r.number(s, "slip_noise", "longitudinal_mps", sn.longitudinal_mps, 1e-9, 10.0);
@@ -204,7 +126,7 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   } catch (const YAML::Exception& e) {
     throw InputError(file, e.mark.is_null() ? 0 : e.mark.line + 1, "unreadable YAML: " + e.msg);
   }
-  Reader r(file);
+  YamlReader r(file);
   if (!root.IsMap()) throw InputError(file, 0, "expected a YAML mapping at the top level");
   r.onlyKeys(root, "",
              {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "sun_sensor",

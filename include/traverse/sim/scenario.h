@@ -1,0 +1,90 @@
+// A simulation scenario (datasets/scenarios/*.yaml): rover, terrain, path, slip, sensors.
+// Every default is here; docs/simulator.md lists them. Any key can be overridden from the
+// command line with --set dotted.key=value (sequence items by index: path.legs.1.distance_m=2).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "traverse/core/types.h"
+
+namespace traverse::sim {
+
+struct Leg {
+  enum class Kind { kRest, kStraight, kArc, kTurnInPlace };
+  Kind kind = Kind::kRest;
+  double duration_s = 10.0;    ///< rest
+  double distance_m = 1.0;     ///< straight, arc (path length of the turn centre point)
+  double radius_m = 2.0;       ///< arc: turn radius of the turn-centre point, + = left
+  double angle_rad = 0.0;      ///< turn in place: + = counter-clockwise
+  double speed_mps = 0.05;     ///< cruise speed (straight, arc)
+  double rate_rad_s = 0.1;     ///< cruise yaw rate (turn in place)
+  double ramp_s = 2.0;         ///< quintic speed ramps at start and end
+  double steer_s = 1.0;        ///< time to steer the front wheels before moving (if they must)
+};
+
+struct TerrainSpec {
+  std::string type = "flat";  ///< flat | plane | undulating | step | rough
+  double slope_rad = 0.1, direction_rad = 0.0;                        ///< plane
+  double step_height_m = 0.06, step_x_m = 0.5, step_y_min_m = -1.0,   ///< step (brick, K §4.2)
+      step_y_max_m = 0.0, step_ramp_m = 0.15;
+  double rms_height_m = 0.02, correlation_length_m = 0.5;             ///< rough
+  double bumps_per_m2 = 2.0;
+  double base_slope_rad = 0.0;  ///< rough: on top of a plane rising along +x
+};
+
+struct SlipSpec {
+  double longitudinal_white_mps = 0.0;       ///< per wheel, white, scaled by |speed|/cruise
+  double longitudinal_correlated_mps = 0.0;  ///< per wheel, first-order Gauss–Markov
+  double lateral_correlated_mps = 0.0;       ///< body transverse slip (moves the rover off its path)
+  double correlation_time_s = 5.0;
+  double burst_rate_per_m = 0.0;             ///< slip bursts per metre driven (all wheels)
+  double burst_duration_s = 2.0;
+  double burst_mps = 0.02;                   ///< longitudinal slip during a burst
+};
+
+struct SensorSpec {
+  double gyro_rate_hz = 20.0;
+  bool gyro_three_axis = false;
+  double gyro_noise_rad_s = 0.0031;
+  Vec3d gyro_bias_rad_s = Vec3d(0.0, 0.0, 0.002);
+  double gyro_bias_random_walk_rad_s_per_sqrt_s = 0.0;
+  double gyro_quantum_rad_s = 0.0;
+  double sun_rate_hz = 1.0;
+  double sun_noise = 0.005;
+  double sun_fov_rad = 2.7925268;
+  Vec3d sun_direction = Vec3d(-1.0, 1.0, 1.0).normalized();
+  double sun_azimuth_rate_rad_s = 0.0;  ///< moving sun (azimuth drift), 0 = fixed
+  bool accel = true;
+  double accel_rate_hz = 20.0;
+  double accel_noise_mps2 = 0.01;
+  Vec3d accel_lever_arm_m = Vec3d(0.0, 0.0, 0.05);
+  double joints_rate_hz = 20.0;
+  double joint_angle_noise_rad = 0.0;  ///< suspension potentiometers γ
+  double steering_noise_rad = 0.0;     ///< steering potentiometers λ
+  double joint_quantum_rad = 0.0;      ///< γ, λ quantisation
+  double wheel_angle_noise_rad = 0.0;  ///< drive encoders ψ
+  double wheel_quantum_rad = 0.0;
+  bool cmd = true;
+};
+
+struct Scenario {
+  std::string name;
+  std::string rover = "rocky7";  ///< datasets/rovers/<rover>/ or a directory path
+  double truth_rate_hz = 200.0;  ///< internal simulation rate (≥ 200 Hz)
+  double truth_output_hz = 20.0; ///< rate of truth.csv
+  double gravity_mps2 = 9.80665;
+  Vec3d start = Vec3d::Zero();   ///< x, y (m) of the turn-centre point, yaw (rad)
+  std::vector<Leg> legs;
+  TerrainSpec terrain;
+  SlipSpec slip;
+  SensorSpec sensors;
+};
+
+/// Loads a scenario by name (datasets/scenarios/<name>.yaml under `datasets_dir`) or path,
+/// applying `overrides` ("dotted.key=value"). Errors are InputErrors naming file, line, key.
+Scenario loadScenario(const std::string& name_or_path, const std::filesystem::path& datasets_dir,
+                      const std::vector<std::string>& overrides = {});
+
+}  // namespace traverse::sim

@@ -1,0 +1,107 @@
+// Reference path of the turn-centre point: legs with quintic speed ramps (the "5th-order spline"
+// of the paper's controller, K §4.2), Ackermann steering of the front wheels (K §2.3.4).
+#include <cmath>
+
+#include "traverse/sim/simulator.h"
+
+namespace traverse::sim {
+namespace {
+
+double smoothstep(double u) { return u <= 0 ? 0 : u >= 1 ? 1 : u * u * u * (10 - 15 * u + 6 * u * u); }
+// ∫₀ᵘ smoothstep = 2.5u⁴ − 3u⁵ + u⁶
+double smoothstepIntegral(double u) { return u <= 0 ? 0 : u >= 1 ? u - 0.5 : u * u * u * u * (2.5 - 3 * u + u * u); }
+
+/// Speed profile of a move of `amount` (> 0) at cruise `c` with ramps of `ramp` s.
+struct Profile {
+  double amount, cruise, ramp, cruise_time;
+  Profile(double a, double c, double r) : amount(a), cruise(c), ramp(r) {
+    if (amount < cruise * ramp) cruise = amount / ramp;  // too short to reach cruise speed
+    cruise_time = (amount - cruise * ramp) / cruise;
+  }
+  double duration() const { return 2 * ramp + cruise_time; }
+  double rate(double t) const {
+    if (t < ramp) return cruise * smoothstep(t / ramp);
+    if (t < ramp + cruise_time) return cruise;
+    return cruise * smoothstep((duration() - t) / ramp);
+  }
+  double position(double t) const {
+    if (t <= 0) return 0;
+    if (t >= duration()) return amount;
+    if (t < ramp) return cruise * ramp * smoothstepIntegral(t / ramp);
+    if (t < ramp + cruise_time) return 0.5 * cruise * ramp + cruise * (t - ramp);
+    return amount - cruise * ramp * smoothstepIntegral((duration() - t) / ramp);
+  }
+};
+
+/// Steering of the front wheels (at zero suspension angles) that puts the instantaneous centre
+/// of rotation at (x_c, R) in the body; a turn in place is R = 0.
+Vec2d steeringFor(const rover::RoverGeometry& geo, const Leg& leg) {
+  if (leg.kind != Leg::Kind::kArc && leg.kind != Leg::Kind::kTurnInPlace) return Vec2d::Zero();
+  const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero());
+  Vec2d s;
+  for (int k = 0; k < 2; ++k) {
+    const Vec3d p = kin[k == 0 ? 0 : 3].T_body_wheel.p;  // wheels 1 and 4 are the steered ones
+    const double dx = p.x() - geo.turn_centre_x;
+    s[k] = leg.kind == Leg::Kind::kTurnInPlace ? -std::atan(dx / p.y()) : std::atan(dx / (leg.radius_m - p.y()));
+  }
+  return s;
+}
+
+}  // namespace
+
+std::vector<PathSample> samplePath(const Scenario& sc, const rover::RoverGeometry& geo) {
+  const double dt = 1.0 / sc.truth_rate_hz;
+  std::vector<PathSample> out;
+  Vec2d centre = sc.start.head<2>();
+  double yaw = sc.start.z(), t0 = 0.0;
+  Vec2d steering = Vec2d::Zero();
+  auto emit_until = [&](double duration, auto&& at) {  // samples in [t0, t0 + duration)
+    const long first = std::lround(std::ceil(t0 / dt - 1e-9));
+    for (long k = first; k * dt < t0 + duration - 1e-9; ++k) out.push_back(at(k * dt - t0, k * dt));
+    t0 += duration;
+  };
+  for (const Leg& leg : sc.legs) {
+    if (leg.kind == Leg::Kind::kRest) {
+      emit_until(leg.duration_s, [&](double, double t) { return PathSample{t, centre, yaw, steering, 0, 0, 0, false}; });
+      continue;
+    }
+    const Vec2d target = steeringFor(geo, leg);
+    if ((target - steering).cwiseAbs().maxCoeff() > 1e-12) {
+      const Vec2d from = steering;
+      emit_until(leg.steer_s, [&](double tau, double t) {
+        return PathSample{t, centre, yaw, from + (target - from) * smoothstep(tau / leg.steer_s), 0, 0, 0, false};
+      });
+      steering = target;
+    }
+    const bool turn = leg.kind == Leg::Kind::kTurnInPlace;
+    const double amount = turn ? leg.angle_rad : leg.distance_m;
+    const double sign = amount < 0 ? -1.0 : 1.0;
+    const Profile prof(std::abs(amount), turn ? leg.rate_rad_s : leg.speed_mps, leg.ramp_s);
+    const Vec2d c0 = centre;
+    const double yaw0 = yaw;
+    auto pose = [&](double s, Vec2d* c, double* y) {  // s: signed distance or angle travelled
+      if (leg.kind == Leg::Kind::kStraight) {
+        *c = c0 + s * Vec2d(std::cos(yaw0), std::sin(yaw0)), *y = yaw0;
+      } else if (turn) {
+        *c = c0, *y = yaw0 + s;
+      } else {
+        const double R = leg.radius_m;
+        *y = yaw0 + s / R;
+        *c = c0 + R * Vec2d(std::sin(*y) - std::sin(yaw0), -std::cos(*y) + std::cos(yaw0));
+      }
+    };
+    emit_until(prof.duration(), [&](double tau, double t) {
+      PathSample p{t, {}, 0, steering, 0, 0, prof.rate(tau) / prof.cruise, true};
+      pose(sign * prof.position(tau), &p.centre, &p.yaw);
+      const double rate = sign * prof.rate(tau);
+      p.speed_mps = turn ? 0.0 : rate;
+      p.yaw_rate_rad_s = turn ? rate : leg.kind == Leg::Kind::kArc ? rate / leg.radius_m : 0.0;
+      return p;
+    });
+    pose(amount, &centre, &yaw);
+  }
+  out.push_back(PathSample{t0, centre, yaw, steering, 0, 0, 0, false});
+  return out;
+}
+
+}  // namespace traverse::sim

@@ -1,0 +1,159 @@
+#include "sim/sensor_synthesis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include "traverse/sensors/accelerometer.h"
+#include "traverse/sensors/gyro.h"
+#include "traverse/sensors/sun_sensor.h"
+#include "traverse/sim/random.h"
+
+namespace traverse::sim {
+namespace {
+
+using rover::kNumWheels;
+
+double quantize(double x, double q) { return q > 0 ? q * std::round(x / q) : x; }
+
+/// A stream with the given columns sampled at `rate_hz` over the truth's time span.
+io::Stream sampled(const std::vector<TruthSample>& truth, double rate_hz, std::vector<std::string> columns,
+                   const std::function<void(const TruthSample&, Eigen::Ref<Eigen::RowVectorXd>)>& fill) {
+  io::Stream s;
+  s.columns = std::move(columns);
+  const double t_end = truth.back().t;
+  const long n = static_cast<long>(std::floor(t_end * rate_hz + 1e-9)) + 1;
+  s.t.resize(n);
+  s.values.resize(n, static_cast<Eigen::Index>(s.columns.size()));
+  for (long k = 0; k < n; ++k) {
+    s.t[k] = static_cast<double>(k) / rate_hz;
+    Eigen::RowVectorXd row(s.values.cols());
+    fill(interpolateTruth(truth, s.t[k]), row);
+    s.values.row(k) = row;
+  }
+  return s;
+}
+
+Vec3d sunAt(const SensorSpec& s, double t) {
+  return Eigen::AngleAxisd(s.sun_azimuth_rate_rad_s * t, Vec3d::UnitZ()) * s.sun_direction;
+}
+
+void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
+  const SensorSpec& s = sc.sensors;
+  c.gravity_mps2 = sc.gravity_mps2;
+  c.gyro.axes = s.gyro_three_axis ? io::GyroAxes::kThreeAxis : io::GyroAxes::kHeadingOnly;
+  c.gyro.noise_rad_s = std::max(s.gyro_noise_rad_s, s.gyro_quantum_rad_s / std::sqrt(12.0));
+  c.gyro.bias_random_walk_rad_s_per_sqrt_s = s.gyro_bias_random_walk_rad_s_per_sqrt_s;
+  c.sun_sensor.noise = s.sun_noise;
+  c.sun_sensor.field_of_view_rad = s.sun_fov_rad;
+  c.sun.direction_site = s.sun_direction;
+  c.sun.azimuth_elevation.clear();
+  if (s.sun_azimuth_rate_rad_s != 0.0) {
+    // A table every 10 s over the traverse (the estimators interpolate it linearly).
+    for (double t = 0.0; t <= t_end + 10.0; t += 10.0) {
+      const Vec3d d = sunAt(s, t);
+      c.sun.azimuth_elevation.emplace_back(t, std::atan2(d.y(), d.x()), std::asin(d.z()));
+    }
+  }
+  c.accel.lever_arm_m = s.accel_lever_arm_m;
+  c.accel.noise_mps2 = s.accel_noise_mps2;
+  c.joints.angle_noise_rad = std::max(s.joint_angle_noise_rad, s.joint_quantum_rad / std::sqrt(12.0));
+}
+
+}  // namespace
+
+TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t) {
+  const auto it = std::upper_bound(truth.begin(), truth.end(), t, [](double v, const TruthSample& s) { return v < s.t; });
+  if (it == truth.begin()) return truth.front();
+  if (it == truth.end()) return truth.back();
+  const TruthSample& a = *(it - 1);
+  const TruthSample& b = *it;
+  const double u = (t - a.t) / (b.t - a.t);
+  TruthSample s = a;
+  s.t = t;
+  s.p_site = (1 - u) * a.p_site + u * b.p_site;
+  s.q_site_body = a.q_site_body.slerp(u, b.q_site_body);
+  s.v_body = (1 - u) * a.v_body + u * b.v_body;
+  s.w_body = (1 - u) * a.w_body + u * b.w_body;
+  s.a_body = (1 - u) * a.a_body + u * b.a_body;
+  s.w_dot_body = (1 - u) * a.w_dot_body + u * b.w_dot_body;
+  s.joints = (1 - u) * a.joints + u * b.joints;
+  s.joint_rates = (1 - u) * a.joint_rates + u * b.joint_rates;
+  for (int i = 0; i < kNumWheels; ++i) s.xi[i] = (1 - u) * a.xi[i] + u * b.xi[i];
+  s.gyro_bias = (1 - u) * a.gyro_bias + u * b.gyro_bias;
+  s.cmd = (1 - u) * a.cmd + u * b.cmd;
+  return s;
+}
+
+io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config, const rover::RoverGeometry& geo,
+                              const std::filesystem::path& rover_dir, const std::vector<TruthSample>& truth,
+                              uint64_t seed) {
+  const SensorSpec& s = sc.sensors;
+  configureLog(sc, truth.back().t, config);
+  io::TraverseLog log;
+  log.dir = rover_dir;
+  log.config = config;
+  log.geometry = geo;
+
+  Rng gyro_rng(seed, 1), sun_rng(seed, 2), accel_rng(seed, 3), joint_rng(seed, 4);
+  const std::vector<std::string> gyro_cols =
+      s.gyro_three_axis ? std::vector<std::string>{"wx", "wy", "wz"} : std::vector<std::string>{"wz"};
+  log.gyro = sampled(truth, s.gyro_rate_hz, gyro_cols, [&](const TruthSample& x, auto row) {
+    const Vec3d w = sensors::gyroPredict<double>(x.w_body, x.gyro_bias);  // K-12
+    for (Eigen::Index c = 0; c < row.size(); ++c) {
+      const int axis = s.gyro_three_axis ? static_cast<int>(c) : 2;  // B_g (K-13)
+      row[c] = quantize(w[axis] + s.gyro_noise_rad_s * gyro_rng.normal(), s.gyro_quantum_rad_s);
+    }
+  });
+
+  std::vector<std::string> joint_cols;
+  for (auto n : rover::kCoordNames) joint_cols.emplace_back(n);
+  log.joints = sampled(truth, s.joints_rate_hz, joint_cols, [&](const TruthSample& x, auto row) {
+    for (int c = 0; c < rover::kNumCoords; ++c) {
+      const bool wheel = c >= rover::kPsi1;
+      const double noise = wheel ? s.wheel_angle_noise_rad
+                           : c >= rover::kLambda1 ? s.steering_noise_rad
+                                                  : s.joint_angle_noise_rad;
+      row[c] = quantize(x.joints[c] + noise * joint_rng.normal(), wheel ? s.wheel_quantum_rad : s.joint_quantum_rad);
+    }
+  });
+
+  if (s.sun_rate_hz > 0) {
+    sensors::SunSensorGeometry sg{config.sun_sensor.R_body_sensor, 0.5 * s.sun_fov_rad};
+    log.sun = sampled(truth, s.sun_rate_hz, {"s1", "s2", "valid"}, [&](const TruthSample& x, auto row) {
+      const Vec3d sun = sunAt(s, x.t);
+      const double n1 = sun_rng.normal(), n2 = sun_rng.normal();
+      if (!sensors::sunInFieldOfView(x.q_site_body, sg, sun)) {
+        row << 0.0, 0.0, 0.0;
+        return;
+      }
+      const Vec2d m = sensors::sunSensorPredict<double>(x.q_site_body, sg, sun);  // K-15, K-16
+      row << std::clamp(m.x() + s.sun_noise * n1, -1.0, 1.0), std::clamp(m.y() + s.sun_noise * n2, -1.0, 1.0), 1.0;
+    });
+  }
+  if (s.accel) {
+    log.accel = sampled(truth, s.accel_rate_hz, {"ax", "ay", "az"}, [&](const TruthSample& x, auto row) {
+      const Vec3d a = sensors::accelPredict<double>(x.q_site_body, x.a_body, x.v_body, x.w_body, x.w_dot_body,
+                                                    s.accel_lever_arm_m, sc.gravity_mps2);  // K-10
+      for (int c = 0; c < 3; ++c) row[c] = a[c] + s.accel_noise_mps2 * accel_rng.normal();
+    });
+  }
+  if (s.cmd) {
+    log.cmd = sampled(truth, s.joints_rate_hz, {"vx", "vy", "vz", "wx", "wy", "wz"},
+                      [&](const TruthSample& x, auto row) { row = x.cmd.transpose(); });
+  }
+  std::vector<std::string> truth_cols = {"x", "y", "z", "qw", "qx", "qy", "qz"};
+  for (int i = 1; i <= kNumWheels; ++i) truth_cols.push_back("xi" + std::to_string(i));
+  for (const char* c : {"bx", "by", "bz", "vx", "vy", "vz", "wx", "wy", "wz"}) truth_cols.emplace_back(c);
+  log.truth = sampled(truth, sc.truth_output_hz, truth_cols, [&](const TruthSample& x, auto row) {
+    const Quatd& q = x.q_site_body;
+    row.head(7) << x.p_site.x(), x.p_site.y(), x.p_site.z(), q.w(), q.x(), q.y(), q.z();
+    for (int i = 0; i < kNumWheels; ++i) row[7 + i] = x.xi[i];
+    row.segment(13, 3) = x.gyro_bias.transpose();
+    row.segment(16, 3) = x.v_body.transpose();
+    row.segment(19, 3) = x.w_body.transpose();
+  });
+  return log;
+}
+
+}  // namespace traverse::sim

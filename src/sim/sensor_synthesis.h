@@ -1,0 +1,20 @@
+// Sensor streams sampled from the simulator's truth through the shared measurement models.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "traverse/io/log.h"
+#include "traverse/sim/simulator.h"
+
+namespace traverse::sim {
+
+io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config, const rover::RoverGeometry& geo,
+                              const std::filesystem::path& rover_dir, const std::vector<TruthSample>& truth,
+                              uint64_t seed);
+
+/// Truth interpolated at time t (linear; slerp for attitude).
+TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t);
+
+}  // namespace traverse::sim

@@ -1,0 +1,182 @@
+// Truth generation: contact configuration along the path, velocities by central differences,
+// wheel drive angles from rolling at the contact point plus injected slip (K §4: "uses the
+// contact geometry ... to derive wheel motion").
+#include "traverse/sim/simulator.h"
+
+#include <cmath>
+#include <memory>
+
+#include "traverse/io/rover_description.h"
+#include "traverse/rover/nominal_slip.h"
+#include "traverse/sim/random.h"
+#include "traverse/sim/terrain.h"
+#include "sim/sensor_synthesis.h"
+
+namespace traverse::sim {
+namespace {
+
+using rover::kNumWheels;
+
+std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario& sc, uint64_t seed) {
+  if (t.type == "plane") return std::make_shared<PlaneTerrain>(t.slope_rad, t.direction_rad);
+  if (t.type == "undulating") return std::make_shared<UndulatingTerrain>();
+  if (t.type == "step") {
+    return std::make_shared<StepTerrain>(t.step_height_m, t.step_x_m, t.step_y_min_m, t.step_y_max_m, t.step_ramp_m);
+  }
+  if (t.type == "rough") {
+    // Cover the whole path with a margin.
+    double reach = 0;
+    for (const Leg& l : sc.legs) reach += std::abs(l.distance_m) * (l.kind == Leg::Kind::kStraight || l.kind == Leg::Kind::kArc);
+    RoughTerrain::Options o;
+    o.rms_height_m = t.rms_height_m;
+    o.correlation_length_m = t.correlation_length_m;
+    o.bumps_per_m2 = t.bumps_per_m2;
+    o.x_min = sc.start.x() - reach - 3, o.x_max = sc.start.x() + reach + 3;
+    o.y_min = sc.start.y() - reach - 3, o.y_max = sc.start.y() + reach + 3;
+    o.seed = static_cast<unsigned>(seed * 7919 + 17);
+    auto rough = std::make_shared<RoughTerrain>(o);
+    if (t.base_slope_rad == 0.0) return rough;
+    return std::make_shared<SumTerrain>(std::vector<std::shared_ptr<const Terrain>>{
+        rough, std::make_shared<PlaneTerrain>(t.base_slope_rad, 0.0)});
+  }
+  return std::make_shared<FlatTerrain>(0.0);
+}
+
+/// Injected longitudinal slip per wheel: white + first-order Gauss–Markov + bursts, scaled by
+/// how fast the rover is moving relative to its cruise rate (no slip at rest).
+class SlipProcess {
+ public:
+  SlipProcess(const SlipSpec& s, double dt, uint64_t seed) : s_(s), dt_(dt), rng_(seed, 101), burst_rng_(seed, 102) {}
+  std::array<double, kNumWheels> step(double progress, double distance_step) {
+    const double a = std::exp(-dt_ / s_.correlation_time_s);
+    std::array<double, kNumWheels> out{};
+    if (s_.burst_rate_per_m > 0 && burst_rng_.uniform() < s_.burst_rate_per_m * distance_step) burst_left_ = s_.burst_duration_s;
+    const double burst = burst_left_ > 0 ? s_.burst_mps : 0.0;
+    burst_left_ -= dt_;
+    for (int i = 0; i < kNumWheels; ++i) {
+      gm_[i] = a * gm_[i] + std::sqrt(1 - a * a) * s_.longitudinal_correlated_mps * rng_.normal();
+      out[i] = progress * (s_.longitudinal_white_mps * rng_.normal() + gm_[i] + burst);
+    }
+    lateral_ = a * lateral_ + std::sqrt(1 - a * a) * s_.lateral_correlated_mps * rng_.normal();
+    return out;
+  }
+  double lateral(double progress) const { return progress * lateral_; }
+
+ private:
+  SlipSpec s_;
+  double dt_;
+  Rng rng_, burst_rng_;
+  std::array<double, kNumWheels> gm_{};
+  double lateral_ = 0.0, burst_left_ = 0.0;
+};
+
+/// Contact solution at every path sample (rests reuse the previous solution).
+std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeometry& geo, const Terrain& terrain,
+                                    const std::vector<PathSample>& path, SlipProcess& slip) {
+  const ContactSolver solver(geo, terrain);
+  std::vector<TruthSample> truth(path.size());
+  ContactState state;
+  Vec2d lateral_offset = Vec2d::Zero();
+  const double dt = 1.0 / sc.truth_rate_hz;
+  for (size_t k = 0; k < path.size(); ++k) {
+    const PathSample& p = path[k];
+    TruthSample& s = truth[k];
+    s.t = p.t;
+    s.moving = p.moving;
+    const double step = std::abs(p.speed_mps) * dt;
+    const auto long_slip = slip.step(p.progress, step);
+    std::copy(long_slip.begin(), long_slip.end(), s.slip_longitudinal_mps.begin());
+    lateral_offset += slip.lateral(p.progress) * dt * Vec2d(-std::sin(p.yaw), std::cos(p.yaw));
+    const Vec2d body_xy = p.centre + lateral_offset - geo.turn_centre_x * Vec2d(std::cos(p.yaw), std::sin(p.yaw));
+    const bool same = k > 0 && !p.moving && path[k - 1].centre == p.centre && path[k - 1].yaw == p.yaw &&
+                      path[k - 1].steering == p.steering && !path[k - 1].moving;
+    if (k == 0) state = solver.initialGuess(body_xy.x(), body_xy.y(), p.yaw);
+    if (!same) state = solver.solve(body_xy.x(), body_xy.y(), p.yaw, p.steering, state);
+    const Posed pose = ContactSolver::bodyPose(body_xy.x(), body_xy.y(), p.yaw, state);
+    s.p_site = pose.p;
+    s.q_site_body = Quatd(pose.R).normalized();
+    s.joints.head<3>() = state.gamma;
+    s.joints.segment<2>(rover::kLambda1) = p.steering;
+    std::copy(state.xi.begin(), state.xi.end(), s.xi.begin());
+    s.cmd = rover::nominalBodyTwist(geo, p.speed_mps, p.yaw_rate_rad_s);
+  }
+  return truth;
+}
+
+/// v, ω, γ̇, λ̇ by central differences; then v̇, ω̇; one-sided at the ends.
+void differentiate(std::vector<TruthSample>& truth) {
+  const size_t n = truth.size();
+  auto span = [&](size_t k) { return std::pair<size_t, size_t>{k == 0 ? 0 : k - 1, k + 1 >= n ? n - 1 : k + 1}; };
+  for (size_t k = 0; k < n; ++k) {
+    const auto [a, b] = span(k);
+    if (a == b) continue;
+    const double h = truth[b].t - truth[a].t;
+    TruthSample& s = truth[k];
+    s.v_body = s.q_site_body.conjugate() * ((truth[b].p_site - truth[a].p_site) / h);
+    s.w_body = so3::boxminus(truth[b].q_site_body, truth[a].q_site_body) / h;
+    // ω from the chord is expressed in frame a; rotate to the frame at k (second-order accurate).
+    s.w_body = s.q_site_body.conjugate() * (truth[a].q_site_body * s.w_body);
+    s.joint_rates.head<5>() = (truth[b].joints.head<5>() - truth[a].joints.head<5>()) / h;
+  }
+  for (size_t k = 0; k < n; ++k) {
+    const auto [a, b] = span(k);
+    if (a == b) continue;
+    const double h = truth[b].t - truth[a].t;
+    truth[k].a_body = (truth[b].v_body - truth[a].v_body) / h;
+    truth[k].w_dot_body = (truth[b].w_body - truth[a].w_body) / h;
+  }
+}
+
+/// Wheel drive rates from rolling at the contact point: the slip constraint's longitudinal row
+/// is linear in ψ̇_i with slope −r, so ψ̇_i = (t_x(ψ̇_i = 0) − s_i)/r gives contact slip s_i.
+void driveWheels(std::vector<TruthSample>& truth, const rover::RoverGeometry& geo) {
+  for (size_t k = 0; k < truth.size(); ++k) {
+    TruthSample& s = truth[k];
+    const auto kin = rover::forwardKinematics<double>(geo, s.joints);
+    rover::JointVectord rates = s.joint_rates;
+    rates.tail<kNumWheels>().setZero();
+    for (int i = 0; i < kNumWheels; ++i) {
+      const double r = geo.wheels[i].radius;
+      const Vec4d t0 = rover::slipConstraint<double>(kin[i].T_body_wheel, r, rover::wheelJointTwist(kin[i], rates),
+                                                     s.v_body, s.w_body, s.xi[i]);
+      s.joint_rates[rover::kPsi1 + i] = (t0[0] - s.slip_longitudinal_mps[i]) / r;
+    }
+    if (k > 0) {  // trapezoidal integration of the drive angles
+      const double h = s.t - truth[k - 1].t;
+      s.joints.tail<kNumWheels>() =
+          truth[k - 1].joints.tail<kNumWheels>() +
+          0.5 * h * (s.joint_rates.tail<kNumWheels>() + truth[k - 1].joint_rates.tail<kNumWheels>());
+    }
+  }
+}
+
+void gyroBias(std::vector<TruthSample>& truth, const SensorSpec& s, uint64_t seed) {
+  Rng rng(seed, 201);
+  Vec3d b = s.gyro_bias_rad_s;
+  for (size_t k = 0; k < truth.size(); ++k) {
+    if (k > 0) {
+      const double q = s.gyro_bias_random_walk_rad_s_per_sqrt_s * std::sqrt(truth[k].t - truth[k - 1].t);
+      b += q * Vec3d(rng.normal(), rng.normal(), rng.normal());
+    }
+    truth[k].gyro_bias = b;
+  }
+}
+
+}  // namespace
+
+Simulation simulate(const Scenario& sc, const std::filesystem::path& rover_dir, uint64_t seed) {
+  io::RoverConfig config = io::loadRoverConfig(rover_dir / "rover.yaml");
+  const rover::RoverGeometry geo = io::loadRoverGeometry(rover_dir / config.urdf_file, config);
+  const auto terrain = makeTerrain(sc.terrain, sc, seed);
+  const std::vector<PathSample> path = samplePath(sc, geo);
+  SlipProcess slip(sc.slip, 1.0 / sc.truth_rate_hz, seed);
+  Simulation sim;
+  sim.truth = solvePoses(sc, geo, *terrain, path, slip);
+  differentiate(sim.truth);
+  driveWheels(sim.truth, geo);
+  gyroBias(sim.truth, sc.sensors, seed);
+  sim.log = synthesizeLog(sc, config, geo, rover_dir, sim.truth, seed);
+  return sim;
+}
+
+}  // namespace traverse::sim

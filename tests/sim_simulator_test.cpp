@@ -1,0 +1,234 @@
+// Simulator: kinematic consistency of the truth (the slip constraint evaluated on it), sensor
+// noise statistics, the straight-1m odometry figure, determinism, scenario files.
+#include <fstream>
+#include <sstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "support/jacobian_check.h"
+#include "traverse/core/error.h"
+#include "traverse/io/log_writer.h"
+#include "traverse/io/rover_description.h"
+#include "traverse/rover/nominal_slip.h"
+#include "traverse/sim/simulator.h"
+
+namespace traverse::sim {
+namespace {
+
+using rover::kNumWheels;
+
+std::filesystem::path datasets() { return std::filesystem::path(testing::sourceDir()) / "datasets"; }
+std::filesystem::path rocky7Dir() { return datasets() / "rovers" / "rocky7"; }
+
+const rover::RoverGeometry& rocky7() {
+  static const rover::RoverGeometry geo = [] {
+    const auto c = io::loadRoverConfig(rocky7Dir() / "rover.yaml");
+    return io::loadRoverGeometry(rocky7Dir() / "rover.urdf", c);
+  }();
+  return geo;
+}
+
+/// A noise-free scenario: no slip, no sensor noise.
+Scenario quiet(const std::string& terrain, std::vector<Leg> legs) {
+  Scenario sc;
+  sc.name = "test";
+  sc.terrain.type = terrain;
+  sc.terrain.slope_rad = 0.12, sc.terrain.direction_rad = 0.5;
+  sc.terrain.step_x_m = 0.4;
+  sc.terrain.rms_height_m = 0.02;
+  sc.legs = std::move(legs);
+  sc.sensors.gyro_noise_rad_s = 0, sc.sensors.sun_noise = 0, sc.sensors.accel_noise_mps2 = 0;
+  sc.start = Vec3d(-0.1, 0.0, 0.0);
+  return sc;
+}
+
+Leg rest(double s) { return Leg{Leg::Kind::kRest, s}; }
+Leg straight(double d) {
+  Leg l{Leg::Kind::kStraight};
+  l.distance_m = d, l.speed_mps = 0.05, l.ramp_s = 1.0;
+  return l;
+}
+Leg arc(double d, double r) {
+  Leg l = straight(d);
+  l.kind = Leg::Kind::kArc, l.radius_m = r;
+  return l;
+}
+Leg turn(double a) {
+  Leg l{Leg::Kind::kTurnInPlace};
+  l.angle_rad = a, l.rate_rad_s = 0.1, l.ramp_s = 1.0;
+  return l;
+}
+
+/// Slip constraint on the truth minus the nominal slip of K §2.3.4, per row, worst and RMS over
+/// the moving samples. The nominal slip is computed from the commanded planar motion (what an
+/// estimator knows), or with `true_twist` from the true body twist (exact for planar ground).
+struct SlipStats {
+  Vec4d max_abs = Vec4d::Zero(), rms = Vec4d::Zero();
+};
+SlipStats slipOnTruth(const Simulation& sim, bool true_twist = false) {
+  SlipStats st;
+  long n = 0;
+  for (const TruthSample& s : sim.truth) {
+    if (!s.moving) continue;
+    const auto kin = rover::forwardKinematics<double>(rocky7(), s.joints);
+    Twistd nominal = rover::nominalBodyTwist(rocky7(), s.cmd[0], s.cmd[5]);
+    if (true_twist) nominal << s.v_body, s.w_body;
+    for (int i = 0; i < kNumWheels; ++i) {
+      const Twistd jt = rover::wheelJointTwist(kin[i], s.joint_rates);
+      const double r = rocky7().wheels[i].radius;
+      const Vec4d t = rover::slipConstraint<double>(kin[i].T_body_wheel, r, jt, s.v_body, s.w_body, s.xi[i]);
+      const Vec4d d = t - rover::nominalSlip(kin[i], r, nominal, jt);
+      st.max_abs = st.max_abs.cwiseMax(d.cwiseAbs());
+      st.rms += d.cwiseAbs2();
+      ++n;
+    }
+  }
+  st.rms = (st.rms / std::max<long>(n, 1)).cwiseSqrt();
+  return st;
+}
+
+// On flat ground and on a tilted plane, with no slip injected, the truth satisfies K-17 exactly
+// up to the simulator's finite differences: zero for straight motion, the nominal slip of
+// K §2.3.4 for arcs and turns in place. On flat ground the nominal slip from the commanded
+// motion is exact; on a slope the paper's flat-ground approximation is off by the tilt (the
+// yaw rate projects onto the body axes), so there it is computed from the true body twist.
+TEST(SimSlipOnTruth, ZeroOnPlanarTerrainsForEveryPathType) {
+  for (const char* terrain : {"flat", "plane"}) {
+    const Simulation sim = simulate(quiet(terrain, {rest(1), straight(0.5), rest(1), arc(0.6, 1.5), rest(1),
+                                                    turn(0.8), rest(1)}), rocky7Dir(), 1);
+    const SlipStats st = slipOnTruth(sim, std::string(terrain) == "plane");
+    EXPECT_LT(st.max_abs.head<3>().maxCoeff(), 2e-5) << terrain << ": " << st.max_abs.transpose();
+    EXPECT_LT(st.max_abs[3], 2e-4) << terrain << ": " << st.max_abs.transpose();
+  }
+}
+
+// On curved terrain the rolling row is zero by construction; the normal row is zero only when the
+// wheel plane contains the surface normal — with camber on 3-D terrain the thin-wheel contact
+// frame's z leaves the true normal, so it stays below 1 mm/s RMS rather than at the numerical
+// level. Transverse slip and spin are the terrain-curvature slip the paper describes (K §2.3.4):
+// small but not zero, reported (docs/simulator.md) and bounded.
+TEST(SimSlipOnTruth, CurvedTerrainsKeepRollingAndContact) {
+  for (const char* terrain : {"undulating", "step", "rough"}) {
+    const Simulation sim = simulate(quiet(terrain, {rest(1), straight(1.0), rest(1), turn(0.5), rest(1)}), rocky7Dir(), 1);
+    const SlipStats st = slipOnTruth(sim);
+    std::cout << terrain << ": slip on truth, RMS per row (x, y, z m/s; spin rad/s) " << st.rms.transpose() << "\n";
+    EXPECT_LT(st.max_abs[0], 1e-9) << terrain;
+    EXPECT_LT(st.rms[2], 1e-3) << terrain << " rms " << st.rms.transpose();
+    EXPECT_LT(st.rms[1], 5e-3) << terrain << " rms " << st.rms.transpose();
+  }
+}
+
+double sampleSigma(const Eigen::VectorXd& x) {
+  return std::sqrt((x.array() - x.mean()).square().sum() / (x.size() - 1));
+}
+
+// Sensor noise matches its configuration: sample σ within 5 % (rover at rest, so the noise is
+// the reading minus its mean).
+TEST(SimSensors, NoiseStatisticsMatchConfiguration) {
+  Scenario sc = quiet("flat", {rest(400)});
+  sc.sensors.gyro_noise_rad_s = 0.003;
+  sc.sensors.gyro_three_axis = true;
+  sc.sensors.sun_noise = 0.004, sc.sensors.sun_rate_hz = 10;
+  sc.sensors.accel_noise_mps2 = 0.02;
+  sc.sensors.joint_angle_noise_rad = 0.001, sc.sensors.steering_noise_rad = 0.002, sc.sensors.wheel_angle_noise_rad = 0.0005;
+  const Simulation sim = simulate(sc, rocky7Dir(), 3);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sampleSigma(sim.log.gyro.values.col(c)) / 0.003, 1.0, 0.05);
+  for (int c = 0; c < 2; ++c) EXPECT_NEAR(sampleSigma(sim.log.sun->values.col(c)) / 0.004, 1.0, 0.05);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sampleSigma(sim.log.accel->values.col(c)) / 0.02, 1.0, 0.05);
+  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kGamma1)) / 0.001, 1.0, 0.05);
+  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kLambda2)) / 0.002, 1.0, 0.05);
+  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kPsi5)) / 0.0005, 1.0, 0.05);
+  // Gyro mean = configured bias.
+  EXPECT_NEAR(sim.log.gyro.values.col(2).mean(), 0.002, 4 * 0.003 / std::sqrt(sim.log.gyro.size()));
+}
+
+// Bias random walk: over many independent axes-runs the bias change after T seconds has
+// σ = q √T; the sample σ of 60 increments must lie within the 99 % range of its distribution.
+TEST(SimSensors, BiasRandomWalkHasExpectedSpread) {
+  Scenario sc = quiet("flat", {rest(100)});
+  sc.sensors.gyro_bias_random_walk_rad_s_per_sqrt_s = 1e-4;
+  std::vector<double> d;
+  for (uint64_t seed = 1; seed <= 20; ++seed) {
+    const Simulation sim = simulate(sc, rocky7Dir(), seed);
+    const Vec3d change = sim.truth.back().gyro_bias - sim.truth.front().gyro_bias;
+    d.insert(d.end(), {change.x(), change.y(), change.z()});
+  }
+  const Eigen::Map<Eigen::VectorXd> v(d.data(), static_cast<Eigen::Index>(d.size()));
+  const double expected = 1e-4 * std::sqrt(100.0);
+  const double ratio = std::sqrt(v.squaredNorm() / v.size()) / expected;
+  EXPECT_GT(ratio, 0.75);  // chi-square(60) 99 % interval of sqrt(χ²/60): [0.76, 1.27]
+  EXPECT_LT(ratio, 1.27);
+}
+
+// straight-1m through averaged-wheel odometry: the paper reports 2.04 % (1.0204 m for 1 m).
+// Our K-22 terrain gives a smaller figure (docs/simulator.md explains); assert the order.
+TEST(SimScenarios, Straight1mOdometryErrorIsOfThePapersOrder) {
+  const Scenario sc = loadScenario("straight-1m", datasets());
+  const Simulation sim = simulate(sc, rocky7Dir(), 1);
+  const auto& j = sim.log.joints.values;
+  const double wheels = (j.bottomRows<1>().rightCols<6>() - j.topRows<1>().rightCols<6>()).mean() * 0.065;
+  const double truth = (sim.truth.back().p_site - sim.truth.front().p_site).head<2>().norm();
+  const double error_pct = 100.0 * (wheels - truth) / truth;
+  RecordProperty("straight_1m_dr_error_pct", std::to_string(error_pct));
+  std::cout << "straight-1m averaged-wheel distance " << wheels << " m for " << truth << " m: " << error_pct << " %\n";
+  EXPECT_GT(error_pct, 0.1);
+  EXPECT_LT(error_pct, 5.0);
+}
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+TEST(SimScenarios, SameSeedGivesByteIdenticalLogs) {
+  const auto base = std::filesystem::temp_directory_path() / "traverse_sim_determinism";
+  std::filesystem::remove_all(base);
+  const Scenario sc = loadScenario("obstacle", datasets(), {"path.1.straight=0.3"});
+  io::writeLog(base / "a", simulate(sc, rocky7Dir(), 42).log);
+  io::writeLog(base / "b", simulate(sc, rocky7Dir(), 42).log);
+  io::writeLog(base / "c", simulate(sc, rocky7Dir(), 43).log);
+  for (const char* f : {"gyro.csv", "joints.csv", "sun.csv", "accel.csv", "cmd.csv", "truth.csv", "rover.yaml", "rover.urdf"}) {
+    EXPECT_EQ(slurp(base / "a" / f), slurp(base / "b" / f)) << f;
+  }
+  EXPECT_NE(slurp(base / "a" / "gyro.csv"), slurp(base / "c" / "gyro.csv"));
+  std::filesystem::remove_all(base);
+}
+
+TEST(SimScenarios, EveryBundledScenarioLoads) {
+  for (const char* name : {"straight-1m", "turn-in-place-360", "obstacle", "planar-18m", "multi-stop"}) {
+    const Scenario sc = loadScenario(name, datasets());
+    EXPECT_EQ(sc.name, name);
+    EXPECT_FALSE(sc.legs.empty());
+  }
+  const Scenario ms = loadScenario("multi-stop", datasets());
+  double distance = 0;
+  int motion_legs = 0;
+  for (const Leg& l : ms.legs) {
+    if (l.kind == Leg::Kind::kStraight || l.kind == Leg::Kind::kArc) distance += l.distance_m;
+    if (l.kind != Leg::Kind::kRest) ++motion_legs;
+    if (l.kind == Leg::Kind::kRest) {
+      EXPECT_GE(l.duration_s, 10.0);
+    }
+  }
+  EXPECT_GE(distance, 50.0);
+  EXPECT_GE(motion_legs, 10);
+  EXPECT_EQ(ms.terrain.type, "rough");
+  EXPECT_GT(ms.sensors.gyro_bias_random_walk_rad_s_per_sqrt_s, 0.0);
+}
+
+TEST(SimScenarios, OverridesAndErrors) {
+  const Scenario sc = loadScenario("straight-1m", datasets(), {"terrain.type=flat", "path.1.speed_mps=0.1", "sensors.sun.rate_hz=2"});
+  EXPECT_EQ(sc.terrain.type, "flat");
+  EXPECT_EQ(sc.legs[1].speed_mps, 0.1);
+  EXPECT_EQ(sc.sensors.sun_rate_hz, 2.0);
+  EXPECT_THROW(loadScenario("straight-1m", datasets(), {"terrain.type=lava"}), InputError);
+  EXPECT_THROW(loadScenario("straight-1m", datasets(), {"terrain.typo=1"}), InputError);
+  EXPECT_THROW(loadScenario("straight-1m", datasets(), {"path.9.speed_mps=1"}), InputError);
+  EXPECT_THROW(loadScenario("no-such-scenario", datasets()), InputError);
+}
+
+}  // namespace
+}  // namespace traverse::sim
