@@ -1,0 +1,169 @@
+// Reading a log directory and summarising it (include/traverse/io/log_reader.h).
+#include "traverse/io/log_reader.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <limits>
+#include <utility>
+
+#include "traverse/core/error.h"
+#include "traverse/io/csv.h"
+#include "traverse/io/rover_config.h"
+#include "traverse/io/rover_description.h"
+
+namespace traverse::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+void requireFile(const fs::path& file) {
+  std::error_code ec;
+  if (!fs::exists(file, ec)) throw InputError(file.string(), 0, "required file missing");
+}
+
+std::optional<Stream> readOptional(const fs::path& dir, const std::string& name,
+                                   const ReadOptions& options, ReadReport* report) {
+  const fs::path file = dir / name;
+  std::error_code ec;
+  if (!fs::exists(file, ec)) return std::nullopt;
+  return readCsv(file, logStreamSpec(name), options, report);
+}
+
+/// rover.yaml says which gyro axes exist; the file must carry exactly those.
+void checkGyroAxes(const fs::path& file, const Stream& gyro, const RoverConfig& config) {
+  const bool three = gyro.columns.size() == 3;
+  const bool want_three = config.gyro.axes == GyroAxes::kThreeAxis;
+  if (three == want_three) return;
+  throw InputError(file.string(), 0,
+                   std::string("header has ") + (three ? "'t,wx,wy,wz'" : "'t,wz'") +
+                       " but rover.yaml gyro.axes is " + (want_three ? "'xyz'" : "'z'"));
+}
+
+std::string fixed(double v, int decimals) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+std::string notes(const StreamSummary& s) {
+  const auto has = [&](const char* c) {
+    return std::find(s.columns.begin(), s.columns.end(), c) != s.columns.end();
+  };
+  if (s.valid_rows)
+    return "valid " + std::to_string(*s.valid_rows) + " of " + std::to_string(s.rows);
+  if (s.name == "gyro") return s.columns.size() == 3 ? "3-axis" : "heading only";
+  if (s.name != "truth") return "";
+  std::string out = "pose";
+  if (has("xi1")) out += " + contact angles";
+  if (has("bx")) out += " + gyro bias";
+  if (has("vx")) out += " + body velocity";
+  if (has("wx")) out += " + body rate";
+  return out;
+}
+
+}  // namespace
+
+TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport* report) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) {
+    throw InputError(dir.string(), 0,
+                     fs::exists(dir, ec) ? "not a directory" : "log directory not found");
+  }
+  for (const char* name : {"rover.yaml", "gyro.csv", "joints.csv"}) requireFile(dir / name);
+  TraverseLog log;
+  log.dir = dir;
+  log.config = loadRoverConfig(dir / "rover.yaml");
+  const fs::path urdf = dir / log.config.urdf_file;
+  requireFile(urdf);
+  log.geometry = loadRoverGeometry(urdf, log.config);
+  log.gyro = readCsv(dir / "gyro.csv", logStreamSpec("gyro.csv"), options, report);
+  checkGyroAxes(dir / "gyro.csv", log.gyro, log.config);
+  log.joints = readCsv(dir / "joints.csv", logStreamSpec("joints.csv"), options, report);
+  log.sun = readOptional(dir, "sun.csv", options, report);
+  log.accel = readOptional(dir, "accel.csv", options, report);
+  log.cmd = readOptional(dir, "cmd.csv", options, report);
+  log.truth = readOptional(dir, "truth.csv", options, report);
+  return log;
+}
+
+StreamSummary summarizeStream(const std::string& name, const Stream& stream) {
+  StreamSummary s;
+  s.name = name;
+  s.file = name + ".csv";
+  s.rows = static_cast<long>(stream.size());
+  s.columns = stream.columns;
+  if (name == "sun" && stream.has("valid"))
+    s.valid_rows = (stream.channel("valid").array() == 1.0).count();
+  if (stream.empty()) return s;
+  s.t_first = stream.t[0];
+  s.t_last = stream.t[stream.size() - 1];
+  if (stream.size() < 2) return s;
+  const Eigen::Index n = stream.size() - 1;
+  const Eigen::VectorXd dt = stream.t.tail(n) - stream.t.head(n);
+  std::vector<double> sorted(dt.data(), dt.data() + n);
+  const auto mid = sorted.begin() + n / 2;
+  std::nth_element(sorted.begin(), mid, sorted.end());
+  double median = *mid;
+  if (n % 2 == 0) median = 0.5 * (median + *std::max_element(sorted.begin(), mid));
+  s.median_rate_hz = 1.0 / median;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (dt[i] <= 3.0 * median) continue;
+    ++s.gaps;
+    s.largest_gap_s = std::max(s.largest_gap_s, dt[i]);
+  }
+  return s;
+}
+
+LogSummary summarize(const TraverseLog& log) {
+  LogSummary out;
+  out.dir = log.dir.string();
+  out.rover_name = log.config.name;
+  out.format = log.config.format;
+  const std::pair<const char*, const Stream*> streams[] = {
+      {"gyro", &log.gyro},
+      {"joints", &log.joints},
+      {"sun", log.sun ? &*log.sun : nullptr},
+      {"accel", log.accel ? &*log.accel : nullptr},
+      {"cmd", log.cmd ? &*log.cmd : nullptr},
+      {"truth", log.truth ? &*log.truth : nullptr},
+  };
+  double t0 = std::numeric_limits<double>::infinity();
+  double t1 = -t0;
+  for (const auto& [name, stream] : streams) {
+    if (stream == nullptr) continue;
+    out.streams.push_back(summarizeStream(name, *stream));
+    if (stream->empty()) continue;
+    t0 = std::min(t0, out.streams.back().t_first);
+    t1 = std::max(t1, out.streams.back().t_last);
+  }
+  if (t0 <= t1) {
+    out.t_start = t0;
+    out.t_end = t1;
+    out.duration_s = t1 - t0;
+  }
+  return out;
+}
+
+std::string formatSummary(const LogSummary& summary) {
+  std::string out = "log       " + summary.dir + "\n";
+  out += "rover     " + summary.rover_name + " (format " + std::to_string(summary.format) + ")\n";
+  out += "duration  " + fixed(summary.duration_s, 3) + " s (t " + fixed(summary.t_start, 3) +
+         " to " + fixed(summary.t_end, 3) + " s)\n\n";
+  char line[256];
+  std::snprintf(line, sizeof line, "%-7s %9s %5s %14s %14s %9s %6s %15s  %s\n", "stream", "rows",
+                "cols", "t first (s)", "t last (s)", "rate (Hz)", "gaps", "largest gap (s)",
+                "notes");
+  out += line;
+  for (const StreamSummary& s : summary.streams) {
+    const std::string gap = s.gaps > 0 ? fixed(s.largest_gap_s, 3) : "-";
+    std::snprintf(line, sizeof line, "%-7s %9ld %5zu %14.3f %14.3f %9.2f %6ld %15s  %s\n",
+                  s.name.c_str(), s.rows, s.columns.size(), s.t_first, s.t_last, s.median_rate_hz,
+                  s.gaps, gap.c_str(), notes(s).c_str());
+    std::string row = line;
+    row.erase(row.find_last_not_of(" \n") + 1);  // no trailing blanks when there is no note
+    out += row + "\n";
+  }
+  return out;
+}
+
+}  // namespace traverse::io
