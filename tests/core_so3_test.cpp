@@ -34,9 +34,11 @@ TEST(CoreSo3, LogMatchesGtsamCases) {
   for (double d : {1e-4, 0.1}) {
     cases.insert(cases.end(), {Vec3d(d, 0, 0), Vec3d(0, d, 0), Vec3d(0, 0, d), dir * d});
   }
-  for (const Vec3d& w : cases) EXPECT_LT((so3::log(so3::exp(w)) - w).norm(), 1e-12) << w.transpose();
+  for (const Vec3d& w : cases)
+    EXPECT_LT((so3::log(so3::exp(w)) - w).norm(), 1e-12) << w.transpose();
   // At exactly π, w and −w are the same rotation: accept either, and check it round-trips.
-  for (const Vec3d& w : {Vec3d(M_PI, 0, 0), Vec3d(0, M_PI, 0), Vec3d(0, 0, M_PI), Vec3d(dir * M_PI)}) {
+  for (const Vec3d& w :
+       {Vec3d(M_PI, 0, 0), Vec3d(0, M_PI, 0), Vec3d(0, 0, M_PI), Vec3d(dir * M_PI)}) {
     const Vec3d l = so3::log(so3::expQuat(w));
     EXPECT_TRUE((l - w).norm() < 1e-12 || (l + w).norm() < 1e-12) << l.transpose();
     EXPECT_LT((so3::exp(l) - so3::exp(w)).norm(), 1e-12);
@@ -58,7 +60,8 @@ TEST(CoreSo3, ExpIsStableForTinyAngles) {
   const Vec3d w(78e-9, 5e-8, 97e-7);
   const double t2 = w.squaredNorm();
   const Mat3d W = so3::skew(w);
-  const Mat3d expected = Mat3d::Identity() + (1 - t2 / 6 + t2 * t2 / 120) * W + (0.5 - t2 / 24) * W * W;
+  const Mat3d expected =
+      Mat3d::Identity() + (1 - t2 / 6 + t2 * t2 / 120) * W + (0.5 - t2 / 24) * W * W;
   EXPECT_LT((so3::exp(w) - expected).norm(), 1e-10);
 }
 
@@ -66,8 +69,9 @@ TEST(CoreSo3, ExpIsStableForTinyAngles) {
 TEST(CoreSo3, QuaternionMatchesGtsamReference) {
   const Quatd q1(0.710997408193224, 0.360544029310185, 0.594459869568306, 0.105395217842782);
   Mat3d R1;
-  R1 << 0.271018623057411, 0.278786459830371, 0.921318086098018, 0.578529366719085, 0.717799701969298,
-      -0.387385285854279, -0.769319620053772, 0.637998195662053, 0.033250932803219;
+  R1 << 0.271018623057411, 0.278786459830371, 0.921318086098018, 0.578529366719085,
+      0.717799701969298, -0.387385285854279, -0.769319620053772, 0.637998195662053,
+      0.033250932803219;
   EXPECT_LT((q1.toRotationMatrix() - R1).norm(), 1e-12);
   EXPECT_LT((so3::exp(so3::log(q1)) - R1).norm(), 1e-12);
 }
@@ -104,7 +108,10 @@ TEST(CoreSo3, ExpAndLogJetJacobiansMatchNumeric) {
   for (int k = 0; k < 50; ++k) {
     const Vec3d phi = randomVector<3>(rng, 3.0 / std::sqrt(3.0));
     testing::expectJacobianMatchesNumeric<4, 3>(
-        [](const auto& x) { return so3::expQuat(Vec3<typename std::decay_t<decltype(x)>::Scalar>(x)).coeffs().eval(); }, phi);
+        [](const auto& x) {
+          return so3::expQuat(Vec3<typename std::decay_t<decltype(x)>::Scalar>(x)).coeffs().eval();
+        },
+        phi);
     const Quatd q0 = randomUnitQuaternion(rng);
     testing::expectJacobianMatchesNumeric<3, 3>(
         [&](const auto& d) {
@@ -117,7 +124,9 @@ TEST(CoreSo3, ExpAndLogJetJacobiansMatchNumeric) {
 
 TEST(CoreSo3, JetDerivativesAreFiniteAtZero) {
   const auto J = testing::autodiffJacobian<4, 3>(
-      [](const auto& x) { return so3::expQuat(Vec3<typename std::decay_t<decltype(x)>::Scalar>(x)).coeffs().eval(); },
+      [](const auto& x) {
+        return so3::expQuat(Vec3<typename std::decay_t<decltype(x)>::Scalar>(x)).coeffs().eval();
+      },
       Vec3d::Zero().eval());
   // d vec(q)/dφ = ½ I, d w/dφ = 0 at φ = 0 (coeffs order x, y, z, w).
   EXPECT_LT((J.topRows<3>() - 0.5 * Mat3d::Identity()).norm(), 1e-15);
@@ -137,10 +146,14 @@ TEST(CoreSo3, RightJacobianMatchesNumericAndInverse) {
     for (int k = 0; k < 20; ++k) {
       const Vec3d phi = randomVector<3>(rng).normalized() * scale;
       // Log(Exp(φ)⁻¹ Exp(φ + δ)) ≈ Jr(φ) δ
-      const auto f = [&](const Vec3d& d) { return so3::boxminus(so3::expQuat(Vec3d(phi + d)), so3::expQuat(phi)); };
+      const auto f = [&](const Vec3d& d) {
+        return so3::boxminus(so3::expQuat(Vec3d(phi + d)), so3::expQuat(phi));
+      };
       const Mat3d Jn = testing::numericJacobian<3, 3>(f, Vec3d::Zero().eval());
       EXPECT_LT((so3::rightJacobian(phi) - Jn).norm(), 1e-7);
-      EXPECT_LT((so3::rightJacobianInverse(phi) * so3::rightJacobian(phi) - Mat3d::Identity()).norm(), 1e-9);
+      EXPECT_LT(
+          (so3::rightJacobianInverse(phi) * so3::rightJacobian(phi) - Mat3d::Identity()).norm(),
+          1e-9);
       EXPECT_LT((so3::leftJacobian(phi) - so3::exp(phi) * so3::rightJacobian(phi)).norm(), 1e-9);
     }
   }

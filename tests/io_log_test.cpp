@@ -257,14 +257,18 @@ TEST_F(IoLog, SummaryOfALog) {
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 8);
 }
 
-TEST_F(IoLog, BundledHandmadeLogReads) {
-  const fs::path handmade = rocky7Dir().parent_path().parent_path() / "logs" / "handmade";
-  if (!fs::exists(handmade)) GTEST_SKIP() << handmade << " not present";
-  const TraverseLog log = readLog(handmade);
-  const LogSummary sum = summarize(log);
-  EXPECT_GE(sum.streams.size(), 2U);
-  EXPECT_GT(sum.duration_s, 0.0);
-  for (const StreamSummary& s : sum.streams) EXPECT_GT(s.median_rate_hz, 0.0) << s.name;
+TEST_F(IoLog, BundledLogsRead) {
+  for (const char* name : {"multi-stop", "straight-1m"}) {
+    const fs::path dir = rocky7Dir().parent_path().parent_path() / "logs" / name;
+    const TraverseLog log = readLog(dir);
+    const LogSummary sum = summarize(log);
+    EXPECT_EQ(sum.streams.size(), 6U) << name;  // gyro, joints, sun, accel, cmd, truth
+    EXPECT_GT(sum.duration_s, 0.0);
+    for (const StreamSummary& s : sum.streams) {
+      EXPECT_GT(s.median_rate_hz, 0.0) << s.name;
+      EXPECT_EQ(s.gaps, 0) << s.name;
+    }
+  }
 }
 
 }  // namespace

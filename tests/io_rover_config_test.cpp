@@ -18,7 +18,8 @@ class IoRoverConfig : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() /
-           ("traverse_cfg_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+           ("traverse_cfg_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
   }
@@ -44,7 +45,8 @@ class IoRoverConfig : public ::testing::Test {
 };
 
 TEST_F(IoRoverConfig, BundledRocky7Loads) {
-  const RoverConfig c = loadRoverConfig(testing::sourceDir() + "/datasets/rovers/rocky7/rover.yaml");
+  const RoverConfig c =
+      loadRoverConfig(testing::sourceDir() + "/datasets/rovers/rocky7/rover.yaml");
   EXPECT_EQ(c.name, "rocky7");
   EXPECT_EQ(c.gyro.axes, GyroAxes::kHeadingOnly);
   EXPECT_EQ(c.joint_names.at("psi6"), "wheel_6");
@@ -74,7 +76,8 @@ TEST_F(IoRoverConfig, SaveLoadRoundTrip) {
   EXPECT_EQ(r.turn_centre_x_m, c.turn_centre_x_m);
   EXPECT_EQ(r.sun.azimuth_elevation.size(), 2u);
   EXPECT_LT((r.sun_sensor.R_body_sensor - c.sun_sensor.R_body_sensor).norm(), 1e-15);
-  EXPECT_EQ(r.process.contact_angle_noise_rad_per_sqrt_s, c.process.contact_angle_noise_rad_per_sqrt_s);
+  EXPECT_EQ(r.process.contact_angle_noise_rad_per_sqrt_s,
+            c.process.contact_angle_noise_rad_per_sqrt_s);
 }
 
 TEST_F(IoRoverConfig, SunTableInterpolates) {
@@ -84,23 +87,35 @@ TEST_F(IoRoverConfig, SunTableInterpolates) {
   EXPECT_LT((s.directionAt(-1) - Vec3d::UnitX()).norm(), 1e-15);
 }
 
-TEST_F(IoRoverConfig, WrongFormatVersion) { expectError("format: 2\n", 1, "unsupported format version 2"); }
-TEST_F(IoRoverConfig, MissingFormat) { expectError("name: x\n", 0, "'format'"); }
-TEST_F(IoRoverConfig, UnreadableYaml) { expectError("format: 1\ngyro: [1, 2\n", 3, "unreadable YAML"); }
+TEST_F(IoRoverConfig, WrongFormatVersion) {
+  expectError("format: 2\n", 1, "unsupported format version 2");
+}
+TEST_F(IoRoverConfig, MissingFormat) {
+  expectError("name: x\n", 0, "'format'");
+}
+TEST_F(IoRoverConfig, UnreadableYaml) {
+  expectError("format: 1\ngyro: [1, 2\n", 3, "unreadable YAML");
+}
 TEST_F(IoRoverConfig, KeyOfWrongType) {
-  expectError("format: 1\ngyro:\n  noise_rad_s: fast\n", 3, "'gyro.noise_rad_s': expected a number");
+  expectError("format: 1\ngyro:\n  noise_rad_s: fast\n", 3,
+              "'gyro.noise_rad_s': expected a number");
 }
 TEST_F(IoRoverConfig, ValueOutOfRange) {
   expectError("format: 1\ngravity_mps2: -9.8\n", 2, "'gravity_mps2': value -9.8 out of range");
 }
-TEST_F(IoRoverConfig, UnknownKey) { expectError("format: 1\ngyro:\n  nosie_rad_s: 0.1\n", 3, "'gyro.nosie_rad_s': unknown key"); }
-TEST_F(IoRoverConfig, BadGyroAxes) { expectError("format: 1\ngyro: {axes: xy}\n", 2, "'gyro.axes'"); }
+TEST_F(IoRoverConfig, UnknownKey) {
+  expectError("format: 1\ngyro:\n  nosie_rad_s: 0.1\n", 3, "'gyro.nosie_rad_s': unknown key");
+}
+TEST_F(IoRoverConfig, BadGyroAxes) {
+  expectError("format: 1\ngyro: {axes: xy}\n", 2, "'gyro.axes'");
+}
 TEST_F(IoRoverConfig, MissingFile) {
   EXPECT_THROW(loadRoverConfig(dir_ / "nope.yaml"), InputError);
 }
 
 TEST_F(IoRoverConfig, UrdfErrorsNameTheJoint) {
-  const RoverConfig c = loadRoverConfig(testing::sourceDir() + "/datasets/rovers/rocky7/rover.yaml");
+  const RoverConfig c =
+      loadRoverConfig(testing::sourceDir() + "/datasets/rovers/rocky7/rover.yaml");
   try {
     parseRoverGeometry("<robot name='x'><link name='base_link'/></robot>", c, "r.urdf");
     FAIL();

@@ -42,8 +42,9 @@ TEST(RoverGeometry, LoadsRocky7FromUrdf) {
 // Joint angle zero: all six wheel centres in one plane parallel to the body x-y plane.
 TEST(RoverKinematics, ZeroAnglesPutWheelCentresInOnePlane) {
   const auto kin = forwardKinematics<double>(rocky7(), JointVectord::Zero());
-  const Vec3d expected[kNumWheels] = {{0.25, 0.24, -0.12}, {0.0, 0.24, -0.12}, {-0.20, 0.24, -0.12},
-                                      {0.25, -0.24, -0.12}, {0.0, -0.24, -0.12}, {-0.20, -0.24, -0.12}};
+  const Vec3d expected[kNumWheels] = {{0.25, 0.24, -0.12},  {0.0, 0.24, -0.12},
+                                      {-0.20, 0.24, -0.12}, {0.25, -0.24, -0.12},
+                                      {0.0, -0.24, -0.12},  {-0.20, -0.24, -0.12}};
   for (int i = 0; i < kNumWheels; ++i) {
     EXPECT_LT((kin[i].T_body_wheel.p - expected[i]).norm(), 1e-15) << "wheel " << i + 1;
     EXPECT_LT((kin[i].T_body_wheel.R - Mat3d::Identity()).norm(), 1e-15);
@@ -85,7 +86,8 @@ TEST(RoverKinematics, SpatialJacobianMatchesFiniteDifferences) {
         const Vec3d pdot = (gp.p - gm.p) / (2 * h);
         Twistd col;
         col << pdot - w.cross(g0.p), w;
-        EXPECT_LT((kin[i].J.col(c) - col).norm(), 1e-8) << "wheel " << i + 1 << " coord " << kCoordNames[c];
+        EXPECT_LT((kin[i].J.col(c) - col).norm(), 1e-8)
+            << "wheel " << i + 1 << " coord " << kCoordNames[c];
       }
     }
   }
@@ -115,8 +117,9 @@ TEST(SlipConstraint, RollingOnFlatGroundIsZero) {
   JointVectord q_dot = JointVectord::Zero();
   q_dot.tail<6>().setConstant(v / 0.065);
   for (int i = 0; i < kNumWheels; ++i) {
-    const Vec4d t = slipConstraint<double>(kin[i].T_body_wheel, 0.065, wheelJointTwist(kin[i], q_dot),
-                                           Vec3d(v, 0, 0), Vec3d::Zero(), 0.0);
+    const Vec4d t =
+        slipConstraint<double>(kin[i].T_body_wheel, 0.065, wheelJointTwist(kin[i], q_dot),
+                               Vec3d(v, 0, 0), Vec3d::Zero(), 0.0);
     EXPECT_LT(t.norm(), 1e-15) << "wheel " << i + 1;
   }
   // Hand-checked: wheels locked (ψ̇ = 0) while the body moves at v: the contact point slides
@@ -138,8 +141,8 @@ TEST(SlipConstraint, RollingOnTiltedPlaneIsZero) {
   JointVectord q_dot = JointVectord::Zero();
   q_dot.tail<6>().setConstant(v / 0.065);
   for (int i = 0; i < kNumWheels; ++i) {
-    const Vec4d t = slipConstraint<double>(kin[i].T_body_wheel, 0.065, wheelJointTwist(kin[i], q_dot), v_body,
-                                           Vec3d::Zero(), 0.0);
+    const Vec4d t = slipConstraint<double>(
+        kin[i].T_body_wheel, 0.065, wheelJointTwist(kin[i], q_dot), v_body, Vec3d::Zero(), 0.0);
     EXPECT_LT(t.norm(), 1e-15);
   }
 }
@@ -167,8 +170,10 @@ TEST(SlipConstraint, ArticulatedRollingOnLocalSlopesIsZero) {
       ASSERT_LT(std::abs(u.y()), 1e-12);
       const double xi = std::atan2(u.z(), u.x());
       JointVectord q_dot_i = q_dot;
-      q_dot_i[kPsi1 + i] = u.norm() / geo.wheels[i].radius - (g.R.transpose() * (w + jt_no_drive.tail<3>())).y();
-      const Vec4d t = slipConstraint<double>(g, geo.wheels[i].radius, wheelJointTwist(kin[i], q_dot_i), v, w, xi);
+      q_dot_i[kPsi1 + i] =
+          u.norm() / geo.wheels[i].radius - (g.R.transpose() * (w + jt_no_drive.tail<3>())).y();
+      const Vec4d t = slipConstraint<double>(g, geo.wheels[i].radius,
+                                             wheelJointTwist(kin[i], q_dot_i), v, w, xi);
       EXPECT_LT(t.norm(), 1e-12) << "wheel " << i + 1 << " t = " << t.transpose();
     }
   }
@@ -197,7 +202,8 @@ TEST(SlipConstraint, TurnInPlaceGivesNominalSpinAndBogieSlip) {
   }
   for (int i = 0; i < kNumWheels; ++i) {
     const Twistd jt = wheelJointTwist(kin[i], q_dot);
-    const Vec4d t = slipConstraint<double>(kin[i].T_body_wheel, 0.065, jt, Vec3d(V.head<3>()), Vec3d(V.tail<3>()), 0.0);
+    const Vec4d t = slipConstraint<double>(kin[i].T_body_wheel, 0.065, jt, Vec3d(V.head<3>()),
+                                           Vec3d(V.tail<3>()), 0.0);
     const bool front = i == 0 || i == 3;
     const double x = kin[i].T_body_wheel.p.x();
     const Vec4d expected(0, front ? 0.0 : wz * (x - xc), 0, wz);
@@ -219,8 +225,9 @@ TEST(SlipConstraint, JacobianMatchesNumericAtRandomStates) {
     testing::expectJacobianMatchesNumeric<4, 7>(
         [&](const auto& s) {
           using T = typename std::decay_t<decltype(s)>::Scalar;
-          return slipConstraint<T>(kin[i].T_body_wheel, geo.wheels[i].radius, jt, Vec3<T>(s.template head<3>()),
-                                   Vec3<T>(s.template segment<3>(3)), s[6]);
+          return slipConstraint<T>(kin[i].T_body_wheel, geo.wheels[i].radius, jt,
+                                   Vec3<T>(s.template head<3>()), Vec3<T>(s.template segment<3>(3)),
+                                   s[6]);
         },
         x);
   }

@@ -20,7 +20,10 @@ Quat<T> perturbed(const Quatd& q0, const Eigen::Matrix<T, 3, 1>& d) {
 }
 
 TEST(GyroModel, HandCheckedAndJacobian) {
-  EXPECT_LT((gyroPredict<double>(Vec3d(0.1, -0.2, 0.3), Vec3d(0.01, 0.02, 0.03)) - Vec3d(0.11, -0.18, 0.33)).norm(), 1e-15);
+  EXPECT_LT((gyroPredict<double>(Vec3d(0.1, -0.2, 0.3), Vec3d(0.01, 0.02, 0.03)) -
+             Vec3d(0.11, -0.18, 0.33))
+                .norm(),
+            1e-15);
   EXPECT_EQ(GyroAxesList::headingOnly().count, 1);
   EXPECT_EQ(GyroAxesList::headingOnly().axis[0], 2);  // B_g = [0 0 1]
   std::mt19937 rng(20);
@@ -55,7 +58,8 @@ TEST(SunSensorModel, SunAt45DegreesOnXAxisReadsHalf) {
 TEST(SunSensorModel, BoresightIsNumericallySafe) {
   const auto f = [](const auto& d) {
     using T = typename std::decay_t<decltype(d)>::Scalar;
-    return sunSensorPredict<T>(perturbed(Quatd::Identity(), Vec3<T>(d)), SunSensorGeometry{}, Vec3d::UnitZ());
+    return sunSensorPredict<T>(perturbed(Quatd::Identity(), Vec3<T>(d)), SunSensorGeometry{},
+                               Vec3d::UnitZ());
   };
   const auto J = testing::autodiffJacobian<2, 3>(f, Vec3d::Zero().eval());
   ASSERT_TRUE(J.allFinite());
@@ -86,7 +90,9 @@ TEST(SunSensorModel, JacobianMatchesNumericAtRandomAttitudes) {
 
 TEST(SunSensorModel, FieldOfViewAndInverse) {
   SunSensorGeometry geo;  // 160° field of view
-  const auto at = [](double deg) { return Vec3d(std::sin(deg * M_PI / 180), 0, std::cos(deg * M_PI / 180)); };
+  const auto at = [](double deg) {
+    return Vec3d(std::sin(deg * M_PI / 180), 0, std::cos(deg * M_PI / 180));
+  };
   EXPECT_TRUE(sunInFieldOfView(Quatd::Identity(), geo, at(79.9)));
   EXPECT_FALSE(sunInFieldOfView(Quatd::Identity(), geo, at(80.1)));
   std::mt19937 rng(22);
@@ -100,12 +106,14 @@ TEST(SunSensorModel, FieldOfViewAndInverse) {
 TEST(AccelerometerModel, LevelRoverAtRestReadsPlusG) {
   const Vec3d f = accelAtRest<double>(Quatd::Identity(), 9.80665);
   EXPECT_LT((f - Vec3d(0, 0, 9.80665)).norm(), 1e-15);
-  const Vec3d full = accelPredict<double>(Quatd::Identity(), Vec3d::Zero(), Vec3d::Zero(), Vec3d::Zero(),
-                                          Vec3d::Zero(), Vec3d(0.1, 0.2, 0.3), 9.80665);
+  const Vec3d full =
+      accelPredict<double>(Quatd::Identity(), Vec3d::Zero(), Vec3d::Zero(), Vec3d::Zero(),
+                           Vec3d::Zero(), Vec3d(0.1, 0.2, 0.3), 9.80665);
   EXPECT_LT((full - f).norm(), 1e-15);
-  // Hand-checked centripetal term: ω = (0, 0, 1) rad/s, lever arm (0.5, 0, 0): ω×(ω×L) = (−0.5, 0, 0).
-  const Vec3d spin = accelPredict<double>(Quatd::Identity(), Vec3d::Zero(), Vec3d::Zero(), Vec3d::UnitZ(),
-                                          Vec3d::Zero(), Vec3d(0.5, 0, 0), 9.80665);
+  // Hand-checked centripetal term: ω = (0, 0, 1) rad/s, lever arm (0.5, 0, 0): ω×(ω×L) = (−0.5, 0,
+  // 0).
+  const Vec3d spin = accelPredict<double>(Quatd::Identity(), Vec3d::Zero(), Vec3d::Zero(),
+                                          Vec3d::UnitZ(), Vec3d::Zero(), Vec3d(0.5, 0, 0), 9.80665);
   EXPECT_LT((spin - Vec3d(-0.5, 0, 9.80665)).norm(), 1e-15);
 }
 
@@ -119,13 +127,14 @@ TEST(AccelerometerModel, JacobianMatchesNumericAndInvertsVelocityModel) {
     const auto f = [&](const auto& s) {
       using T = typename std::decay_t<decltype(s)>::Scalar;
       return accelPredict<T>(perturbed(q0, Vec3<T>(s.template head<3>())), s.template segment<3>(3),
-                             s.template segment<3>(6), s.template segment<3>(9), s.template segment<3>(12), lever,
-                             3.71);
+                             s.template segment<3>(6), s.template segment<3>(9),
+                             s.template segment<3>(12), lever, 3.71);
     };
     testing::expectJacobianMatchesNumeric<3, 15>(f, x);
     // K-11/O-4 solve K-10 for a: feeding the prediction back returns the acceleration.
     const Vec3d am = f(x);
-    const Vec3d a = velocityRateFromAccel<double>(am, q0, x.segment<3>(6), x.segment<3>(9), x.segment<3>(12), lever, 3.71);
+    const Vec3d a = velocityRateFromAccel<double>(am, q0, x.segment<3>(6), x.segment<3>(9),
+                                                  x.segment<3>(12), lever, 3.71);
     EXPECT_LT((a - x.segment<3>(3)).norm(), 1e-12);
   }
 }
@@ -133,7 +142,8 @@ TEST(AccelerometerModel, JacobianMatchesNumericAndInvertsVelocityModel) {
 TEST(GravityAtRest, RollPitchMatchEulerAngles) {
   std::mt19937 rng(24);
   for (int k = 0; k < 100; ++k) {
-    const Vec3d rpy(randomVector<1>(rng, 1.2)[0], randomVector<1>(rng, 1.2)[0], randomVector<1>(rng, 3.0)[0]);
+    const Vec3d rpy(randomVector<1>(rng, 1.2)[0], randomVector<1>(rng, 1.2)[0],
+                    randomVector<1>(rng, 3.0)[0]);
     const Quatd q = so3::fromRollPitchYaw(rpy.x(), rpy.y(), rpy.z());
     const Vec2d rp = rollPitchFromSpecificForce<double>(accelAtRest<double>(q, 9.81));
     EXPECT_LT((rp - rpy.head<2>()).norm(), 1e-12);
@@ -149,8 +159,8 @@ TEST(GravityAtRest, RollPitchMatchEulerAngles) {
 TEST(GravityAtRest, JacobiansMatchNumeric) {
   std::mt19937 rng(25);
   for (int k = 0; k < 30; ++k) {
-    const Quatd q0 = so3::fromRollPitchYaw(randomVector<1>(rng, 1.0)[0], randomVector<1>(rng, 1.0)[0],
-                                           randomVector<1>(rng, 3.0)[0]);
+    const Quatd q0 = so3::fromRollPitchYaw(
+        randomVector<1>(rng, 1.0)[0], randomVector<1>(rng, 1.0)[0], randomVector<1>(rng, 3.0)[0]);
     testing::expectJacobianMatchesNumeric<2, 3>(
         [&](const auto& d) {
           using T = typename std::decay_t<decltype(d)>::Scalar;
@@ -159,8 +169,8 @@ TEST(GravityAtRest, JacobiansMatchNumeric) {
         Vec3d::Zero().eval());
     // The covariance propagation's analytic Jacobian against finite differences.
     const Vec3d f = accelAtRest<double>(q0, 9.81) + randomVector<3>(rng, 0.1);
-    const Eigen::Matrix<double, 2, 3> Jn =
-        testing::numericJacobian<2, 3>([](const Vec3d& x) { return rollPitchFromSpecificForce<double>(x); }, f);
+    const Eigen::Matrix<double, 2, 3> Jn = testing::numericJacobian<2, 3>(
+        [](const Vec3d& x) { return rollPitchFromSpecificForce<double>(x); }, f);
     const Mat3d cov = 1e-4 * Mat3d::Identity();
     const RollPitchMeasurement m = rollPitchAtRest(f, cov);
     EXPECT_LT((m.covariance - Jn * cov * Jn.transpose()).norm(), 1e-12);

@@ -68,7 +68,8 @@ INSTANTIATE_TEST_SUITE_P(Terrains, SimContact, ::testing::Range(0, 5),
 TEST(SimContactPlane, BodyFollowsThePlane) {
   const PlaneTerrain plane(0.15, 0.0);
   const ContactSolver solver(rocky7(), plane);
-  const ContactState s = solver.solve(1.0, 0.5, 0.0, Vec2d::Zero(), solver.initialGuess(1.0, 0.5, 0.0));
+  const ContactState s =
+      solver.solve(1.0, 0.5, 0.0, Vec2d::Zero(), solver.initialGuess(1.0, 0.5, 0.0));
   EXPECT_NEAR(s.pitch, -0.15, 1e-9);
   EXPECT_NEAR(s.roll, 0.0, 1e-9);
   EXPECT_LT(s.gamma.norm(), 1e-8);

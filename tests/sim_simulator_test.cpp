@@ -18,8 +18,12 @@ namespace {
 
 using rover::kNumWheels;
 
-std::filesystem::path datasets() { return std::filesystem::path(testing::sourceDir()) / "datasets"; }
-std::filesystem::path rocky7Dir() { return datasets() / "rovers" / "rocky7"; }
+std::filesystem::path datasets() {
+  return std::filesystem::path(testing::sourceDir()) / "datasets";
+}
+std::filesystem::path rocky7Dir() {
+  return datasets() / "rovers" / "rocky7";
+}
 
 const rover::RoverGeometry& rocky7() {
   static const rover::RoverGeometry geo = [] {
@@ -43,7 +47,9 @@ Scenario quiet(const std::string& terrain, std::vector<Leg> legs) {
   return sc;
 }
 
-Leg rest(double s) { return Leg{Leg::Kind::kRest, s}; }
+Leg rest(double s) {
+  return Leg{Leg::Kind::kRest, s};
+}
 Leg straight(double d) {
   Leg l{Leg::Kind::kStraight};
   l.distance_m = d, l.speed_mps = 0.05, l.ramp_s = 1.0;
@@ -77,7 +83,8 @@ SlipStats slipOnTruth(const Simulation& sim, bool true_twist = false) {
     for (int i = 0; i < kNumWheels; ++i) {
       const Twistd jt = rover::wheelJointTwist(kin[i], s.joint_rates);
       const double r = rocky7().wheels[i].radius;
-      const Vec4d t = rover::slipConstraint<double>(kin[i].T_body_wheel, r, jt, s.v_body, s.w_body, s.xi[i]);
+      const Vec4d t =
+          rover::slipConstraint<double>(kin[i].T_body_wheel, r, jt, s.v_body, s.w_body, s.xi[i]);
       const Vec4d d = t - rover::nominalSlip(kin[i], r, nominal, jt);
       st.max_abs = st.max_abs.cwiseMax(d.cwiseAbs());
       st.rms += d.cwiseAbs2();
@@ -95,8 +102,9 @@ SlipStats slipOnTruth(const Simulation& sim, bool true_twist = false) {
 // yaw rate projects onto the body axes), so there it is computed from the true body twist.
 TEST(SimSlipOnTruth, ZeroOnPlanarTerrainsForEveryPathType) {
   for (const char* terrain : {"flat", "plane"}) {
-    const Simulation sim = simulate(quiet(terrain, {rest(1), straight(0.5), rest(1), arc(0.6, 1.5), rest(1),
-                                                    turn(0.8), rest(1)}), rocky7Dir(), 1);
+    const Simulation sim = simulate(quiet(terrain, {rest(1), straight(0.5), rest(1), arc(0.6, 1.5),
+                                                    rest(1), turn(0.8), rest(1)}),
+                                    rocky7Dir(), 1);
     const SlipStats st = slipOnTruth(sim, std::string(terrain) == "plane");
     EXPECT_LT(st.max_abs.head<3>().maxCoeff(), 2e-5) << terrain << ": " << st.max_abs.transpose();
     EXPECT_LT(st.max_abs[3], 2e-4) << terrain << ": " << st.max_abs.transpose();
@@ -110,9 +118,11 @@ TEST(SimSlipOnTruth, ZeroOnPlanarTerrainsForEveryPathType) {
 // small but not zero, reported (docs/simulator.md) and bounded.
 TEST(SimSlipOnTruth, CurvedTerrainsKeepRollingAndContact) {
   for (const char* terrain : {"undulating", "step", "rough"}) {
-    const Simulation sim = simulate(quiet(terrain, {rest(1), straight(1.0), rest(1), turn(0.5), rest(1)}), rocky7Dir(), 1);
+    const Simulation sim = simulate(
+        quiet(terrain, {rest(1), straight(1.0), rest(1), turn(0.5), rest(1)}), rocky7Dir(), 1);
     const SlipStats st = slipOnTruth(sim);
-    std::cout << terrain << ": slip on truth, RMS per row (x, y, z m/s; spin rad/s) " << st.rms.transpose() << "\n";
+    std::cout << terrain << ": slip on truth, RMS per row (x, y, z m/s; spin rad/s) "
+              << st.rms.transpose() << "\n";
     EXPECT_LT(st.max_abs[0], 1e-9) << terrain;
     EXPECT_LT(st.rms[2], 1e-3) << terrain << " rms " << st.rms.transpose();
     EXPECT_LT(st.rms[1], 5e-3) << terrain << " rms " << st.rms.transpose();
@@ -131,11 +141,15 @@ TEST(SimSensors, NoiseStatisticsMatchConfiguration) {
   sc.sensors.gyro_three_axis = true;
   sc.sensors.sun_noise = 0.004, sc.sensors.sun_rate_hz = 10;
   sc.sensors.accel_noise_mps2 = 0.02;
-  sc.sensors.joint_angle_noise_rad = 0.001, sc.sensors.steering_noise_rad = 0.002, sc.sensors.wheel_angle_noise_rad = 0.0005;
+  sc.sensors.joint_angle_noise_rad = 0.001, sc.sensors.steering_noise_rad = 0.002,
+  sc.sensors.wheel_angle_noise_rad = 0.0005;
   const Simulation sim = simulate(sc, rocky7Dir(), 3);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sampleSigma(sim.log.gyro.values.col(c)) / 0.003, 1.0, 0.05);
-  for (int c = 0; c < 2; ++c) EXPECT_NEAR(sampleSigma(sim.log.sun->values.col(c)) / 0.004, 1.0, 0.05);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sampleSigma(sim.log.accel->values.col(c)) / 0.02, 1.0, 0.05);
+  for (int c = 0; c < 3; ++c)
+    EXPECT_NEAR(sampleSigma(sim.log.gyro.values.col(c)) / 0.003, 1.0, 0.05);
+  for (int c = 0; c < 2; ++c)
+    EXPECT_NEAR(sampleSigma(sim.log.sun->values.col(c)) / 0.004, 1.0, 0.05);
+  for (int c = 0; c < 3; ++c)
+    EXPECT_NEAR(sampleSigma(sim.log.accel->values.col(c)) / 0.02, 1.0, 0.05);
   EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kGamma1)) / 0.001, 1.0, 0.05);
   EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kLambda2)) / 0.002, 1.0, 0.05);
   EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kPsi5)) / 0.0005, 1.0, 0.05);
@@ -167,11 +181,13 @@ TEST(SimScenarios, Straight1mOdometryErrorIsOfThePapersOrder) {
   const Scenario sc = loadScenario("straight-1m", datasets());
   const Simulation sim = simulate(sc, rocky7Dir(), 1);
   const auto& j = sim.log.joints.values;
-  const double wheels = (j.bottomRows<1>().rightCols<6>() - j.topRows<1>().rightCols<6>()).mean() * 0.065;
+  const double wheels =
+      (j.bottomRows<1>().rightCols<6>() - j.topRows<1>().rightCols<6>()).mean() * 0.065;
   const double truth = (sim.truth.back().p_site - sim.truth.front().p_site).head<2>().norm();
   const double error_pct = 100.0 * (wheels - truth) / truth;
   RecordProperty("straight_1m_dr_error_pct", std::to_string(error_pct));
-  std::cout << "straight-1m averaged-wheel distance " << wheels << " m for " << truth << " m: " << error_pct << " %\n";
+  std::cout << "straight-1m averaged-wheel distance " << wheels << " m for " << truth
+            << " m: " << error_pct << " %\n";
   EXPECT_GT(error_pct, 0.1);
   EXPECT_LT(error_pct, 5.0);
 }
@@ -190,15 +206,30 @@ TEST(SimScenarios, SameSeedGivesByteIdenticalLogs) {
   io::writeLog(base / "a", simulate(sc, rocky7Dir(), 42).log);
   io::writeLog(base / "b", simulate(sc, rocky7Dir(), 42).log);
   io::writeLog(base / "c", simulate(sc, rocky7Dir(), 43).log);
-  for (const char* f : {"gyro.csv", "joints.csv", "sun.csv", "accel.csv", "cmd.csv", "truth.csv", "rover.yaml", "rover.urdf"}) {
+  for (const char* f : {"gyro.csv", "joints.csv", "sun.csv", "accel.csv", "cmd.csv", "truth.csv",
+                        "rover.yaml", "rover.urdf"}) {
     EXPECT_EQ(slurp(base / "a" / f), slurp(base / "b" / f)) << f;
   }
   EXPECT_NE(slurp(base / "a" / "gyro.csv"), slurp(base / "c" / "gyro.csv"));
   std::filesystem::remove_all(base);
 }
 
+// datasets/logs/straight-1m is what scripts/make_datasets.sh writes: regenerate and compare.
+TEST(SimScenarios, BundledLogIsReproducible) {
+  const auto out = std::filesystem::temp_directory_path() / "traverse_bundled_straight";
+  std::filesystem::remove_all(out);
+  io::writeLog(out, simulate(loadScenario("straight-1m", datasets()), rocky7Dir(), 1).log);
+  for (const char* f :
+       {"gyro.csv", "joints.csv", "sun.csv", "accel.csv", "cmd.csv", "truth.csv", "rover.yaml"}) {
+    EXPECT_EQ(slurp(out / f), slurp(datasets() / "logs" / "straight-1m" / f))
+        << f << ": run scripts/make_datasets.sh";
+  }
+  std::filesystem::remove_all(out);
+}
+
 TEST(SimScenarios, EveryBundledScenarioLoads) {
-  for (const char* name : {"straight-1m", "turn-in-place-360", "obstacle", "planar-18m", "multi-stop"}) {
+  for (const char* name :
+       {"straight-1m", "turn-in-place-360", "obstacle", "planar-18m", "multi-stop"}) {
     const Scenario sc = loadScenario(name, datasets());
     EXPECT_EQ(sc.name, name);
     EXPECT_FALSE(sc.legs.empty());
@@ -220,7 +251,9 @@ TEST(SimScenarios, EveryBundledScenarioLoads) {
 }
 
 TEST(SimScenarios, OverridesAndErrors) {
-  const Scenario sc = loadScenario("straight-1m", datasets(), {"terrain.type=flat", "path.1.speed_mps=0.1", "sensors.sun.rate_hz=2"});
+  const Scenario sc =
+      loadScenario("straight-1m", datasets(),
+                   {"terrain.type=flat", "path.1.speed_mps=0.1", "sensors.sun.rate_hz=2"});
   EXPECT_EQ(sc.terrain.type, "flat");
   EXPECT_EQ(sc.legs[1].speed_mps, 0.1);
   EXPECT_EQ(sc.sensors.sun_rate_hz, 2.0);

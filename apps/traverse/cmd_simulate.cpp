@@ -16,11 +16,16 @@ Command addSimulateCommand(CLI::App& app, const GlobalOptions& global) {
     std::vector<std::string> overrides;
   };
   auto opt = std::make_shared<Options>();
-  CLI::App* cmd = app.add_subcommand("simulate", "Simulate a scenario and write a traverse log with truth.csv");
-  cmd->add_option("SCENARIO", opt->scenario, "Scenario name (datasets/scenarios/NAME.yaml) or YAML file")->required();
+  CLI::App* cmd =
+      app.add_subcommand("simulate", "Simulate a scenario and write a traverse log with truth.csv");
+  cmd->add_option("SCENARIO", opt->scenario,
+                  "Scenario name (datasets/scenarios/NAME.yaml) or YAML file")
+      ->required();
   cmd->add_option("-o,--output", opt->out, "Log directory to write")->required();
-  cmd->add_option("--seed", opt->seed, "Random seed (same seed, same bytes)")->capture_default_str();
-  cmd->add_option("--set", opt->overrides, "Override a scenario key: dotted.key=value (repeatable)");
+  cmd->add_option("--seed", opt->seed, "Random seed (same seed, same bytes)")
+      ->capture_default_str();
+  cmd->add_option("--set", opt->overrides,
+                  "Override a scenario key: dotted.key=value (repeatable)");
   return [cmd, opt, &global]() {
     if (!*cmd) return -1;
     const std::filesystem::path data = datasetsDir();
@@ -28,15 +33,17 @@ Command addSimulateCommand(CLI::App& app, const GlobalOptions& global) {
     std::filesystem::path rover_dir(sc.rover);
     if (!std::filesystem::exists(rover_dir / "rover.yaml")) rover_dir = data / "rovers" / sc.rover;
     if (!std::filesystem::exists(rover_dir / "rover.yaml")) {
-      throw InputError(opt->scenario, 0, "rover '" + sc.rover + "' not found (no " + (rover_dir / "rover.yaml").string() + ")");
+      throw InputError(
+          opt->scenario, 0,
+          "rover '" + sc.rover + "' not found (no " + (rover_dir / "rover.yaml").string() + ")");
     }
     const sim::Simulation result = sim::simulate(sc, rover_dir, opt->seed);
     io::writeLog(opt->out, result.log);
     if (!global.quiet) {
       const auto& last = result.truth.back();
       std::cout << "simulated " << sc.name << " (seed " << opt->seed << "): " << last.t << " s, "
-                << result.truth.size() << " truth samples, final position (" << last.p_site.transpose()
-                << ") m -> " << opt->out << "\n";
+                << result.truth.size() << " truth samples, final position ("
+                << last.p_site.transpose() << ") m -> " << opt->out << "\n";
     }
     return 0;
   };

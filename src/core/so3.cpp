@@ -32,6 +32,8 @@ Mat3d rightJacobianInverse(const Vec3d& phi) {
   return Mat3d::Identity() + 0.5 * W + c * W * W;
 }
 
-Mat3d leftJacobian(const Vec3d& phi) { return rightJacobian(Vec3d(-phi)); }
+Mat3d leftJacobian(const Vec3d& phi) {
+  return rightJacobian(Vec3d(-phi));
+}
 
 }  // namespace traverse::so3

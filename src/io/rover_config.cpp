@@ -7,10 +7,10 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "io/yaml_reader.h"
 #include "traverse/core/error.h"
 #include "traverse/core/so3.h"
 #include "traverse/io/rover_config.h"
-#include "io/yaml_reader.h"
 
 namespace traverse::io {
 namespace {
@@ -18,9 +18,11 @@ namespace {
 using detail::YamlReader;
 
 void readGyro(const YamlReader& r, const YAML::Node& root, GyroConfig& g) {
-  const YAML::Node n = r.section(root, "gyro",
+  const YAML::Node n = r.section(
+      root, "gyro",
       {"axes", "noise_rad_s", "bias_random_walk_rad_s_per_sqrt_s", "initial_bias_sigma_rad_s"});
-  const std::string axes = r.string(n, "gyro", "axes", g.axes == GyroAxes::kThreeAxis ? "xyz" : "z");
+  const std::string axes =
+      r.string(n, "gyro", "axes", g.axes == GyroAxes::kThreeAxis ? "xyz" : "z");
   if (axes == "z") {
     g.axes = GyroAxes::kHeadingOnly;
   } else if (axes == "xyz") {
@@ -36,8 +38,10 @@ void readGyro(const YamlReader& r, const YAML::Node& root, GyroConfig& g) {
 }
 
 void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
-  const YAML::Node s = r.section(root, "sun_sensor", {"mounting_rpy_rad", "field_of_view_rad", "noise"});
-  const Vec3d rpy = r.vec3(s, "sun_sensor", "mounting_rpy_rad", so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));
+  const YAML::Node s =
+      r.section(root, "sun_sensor", {"mounting_rpy_rad", "field_of_view_rad", "noise"});
+  const Vec3d rpy = r.vec3(s, "sun_sensor", "mounting_rpy_rad",
+                           so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));
   c.sun_sensor.R_body_sensor = so3::fromRollPitchYaw(rpy.x(), rpy.y(), rpy.z()).toRotationMatrix();
   c.sun_sensor.field_of_view_rad =
       r.number(s, "sun_sensor", "field_of_view_rad", c.sun_sensor.field_of_view_rad, 0.01, M_PI);
@@ -47,10 +51,12 @@ void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   c.accel.lever_arm_m = r.vec3(a, "accelerometer", "lever_arm_m", c.accel.lever_arm_m);
   c.accel.noise_mps2 = r.number(a, "accelerometer", "noise_mps2", c.accel.noise_mps2, 0.0, 100.0);
 
-  const YAML::Node j = r.section(root, "joint_sensors", {"angle_noise_rad", "rate_filter_half_window"});
-  c.joints.angle_noise_rad = r.number(j, "joint_sensors", "angle_noise_rad", c.joints.angle_noise_rad, 0.0, 1.0);
-  c.joints.rate_filter_half_window =
-      r.integer(j, "joint_sensors", "rate_filter_half_window", c.joints.rate_filter_half_window, 1, 100);
+  const YAML::Node j =
+      r.section(root, "joint_sensors", {"angle_noise_rad", "rate_filter_half_window"});
+  c.joints.angle_noise_rad =
+      r.number(j, "joint_sensors", "angle_noise_rad", c.joints.angle_noise_rad, 0.0, 1.0);
+  c.joints.rate_filter_half_window = r.integer(j, "joint_sensors", "rate_filter_half_window",
+                                               c.joints.rate_filter_half_window, 1, 100);
 }
 
 void readSun(const YamlReader& r, const YAML::Node& root, SunConfig& sun) {
@@ -76,26 +82,32 @@ void readSun(const YamlReader& r, const YAML::Node& root, SunConfig& sun) {
 }
 
 void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
-  const YAML::Node s = r.section(root, "slip_noise", {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s"});
+  const YAML::Node s = r.section(root, "slip_noise",
+                                 {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s"});
   auto& sn = c.slip_noise;
-  sn.longitudinal_mps = r.number(s, "slip_noise", "longitudinal_mps", sn.longitudinal_mps, 1e-9, 10.0);
+  sn.longitudinal_mps =
+      r.number(s, "slip_noise", "longitudinal_mps", sn.longitudinal_mps, 1e-9, 10.0);
   sn.lateral_mps = r.number(s, "slip_noise", "lateral_mps", sn.lateral_mps, 1e-9, 10.0);
   sn.normal_mps = r.number(s, "slip_noise", "normal_mps", sn.normal_mps, 1e-9, 10.0);
   sn.spin_rad_s = r.number(s, "slip_noise", "spin_rad_s", sn.spin_rad_s, 1e-9, 10.0);
 
-  const YAML::Node p = r.section(root, "process",
-      {"contact_angle_time_constant_s", "contact_angle_noise_rad_per_sqrt_s", "velocity_time_constant_s",
-       "velocity_noise_mps2_per_sqrt_hz", "rate_time_constant_s", "rate_noise_rad_s2_per_sqrt_hz"});
+  const YAML::Node p =
+      r.section(root, "process",
+                {"contact_angle_time_constant_s", "contact_angle_noise_rad_per_sqrt_s",
+                 "velocity_time_constant_s", "velocity_noise_mps2_per_sqrt_hz",
+                 "rate_time_constant_s", "rate_noise_rad_s2_per_sqrt_hz"});
   auto& pc = c.process;
-  pc.contact_angle_time_constant_s =
-      r.number(p, "process", "contact_angle_time_constant_s", pc.contact_angle_time_constant_s, 1e-3, 1e6);
-  pc.contact_angle_noise_rad_per_sqrt_s = r.number(p, "process", "contact_angle_noise_rad_per_sqrt_s",
-                                                   pc.contact_angle_noise_rad_per_sqrt_s, 0.0, 10.0);
+  pc.contact_angle_time_constant_s = r.number(p, "process", "contact_angle_time_constant_s",
+                                              pc.contact_angle_time_constant_s, 1e-3, 1e6);
+  pc.contact_angle_noise_rad_per_sqrt_s =
+      r.number(p, "process", "contact_angle_noise_rad_per_sqrt_s",
+               pc.contact_angle_noise_rad_per_sqrt_s, 0.0, 10.0);
   pc.velocity_time_constant_s =
       r.number(p, "process", "velocity_time_constant_s", pc.velocity_time_constant_s, 1e-3, 1e6);
   pc.velocity_noise_mps2_per_sqrt_hz = r.number(p, "process", "velocity_noise_mps2_per_sqrt_hz",
                                                 pc.velocity_noise_mps2_per_sqrt_hz, 0.0, 100.0);
-  pc.rate_time_constant_s = r.number(p, "process", "rate_time_constant_s", pc.rate_time_constant_s, 1e-3, 1e6);
+  pc.rate_time_constant_s =
+      r.number(p, "process", "rate_time_constant_s", pc.rate_time_constant_s, 1e-3, 1e6);
   pc.rate_noise_rad_s2_per_sqrt_hz = r.number(p, "process", "rate_noise_rad_s2_per_sqrt_hz",
                                               pc.rate_noise_rad_s2_per_sqrt_hz, 0.0, 100.0);
 }
@@ -129,22 +141,26 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   YamlReader r(file);
   if (!root.IsMap()) throw InputError(file, 0, "expected a YAML mapping at the top level");
   r.onlyKeys(root, "",
-             {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "sun_sensor",
-              "accelerometer", "sun", "slip_noise", "process", "joint_sensors"});
+             {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro",
+              "sun_sensor", "accelerometer", "sun", "slip_noise", "process", "joint_sensors"});
   RoverConfig c;
   if (!root["format"].IsDefined()) throw InputError(file, 0, "key 'format': missing (expected 1)");
   c.format = r.integer(root, "", "format", 0, 0, 1000);
-  if (c.format != 1) r.fail(root["format"], "format", "unsupported format version " + std::to_string(c.format) + " (this reader knows 1)");
+  if (c.format != 1)
+    r.fail(root["format"], "format",
+           "unsupported format version " + std::to_string(c.format) + " (this reader knows 1)");
   c.name = r.string(root, "", "name", c.name);
   c.urdf_file = r.string(root, "", "urdf", c.urdf_file);
   if (const YAML::Node j = root["joints"]; j.IsDefined() && !j.IsNull()) {
     if (!j.IsMap()) r.fail(j, "joints", "expected a mapping column -> URDF joint name");
     for (const auto& kv : j) {
-      if (!kv.second.IsScalar()) r.fail(kv.second, "joints." + kv.first.as<std::string>(), "expected a string");
+      if (!kv.second.IsScalar())
+        r.fail(kv.second, "joints." + kv.first.as<std::string>(), "expected a string");
       c.joint_names[kv.first.as<std::string>()] = kv.second.as<std::string>();
     }
   }
-  if (root["turn_centre_x_m"].IsDefined()) c.turn_centre_x_m = r.number(root, "", "turn_centre_x_m", 0.0, -100.0, 100.0);
+  if (root["turn_centre_x_m"].IsDefined())
+    c.turn_centre_x_m = r.number(root, "", "turn_centre_x_m", 0.0, -100.0, 100.0);
   c.gravity_mps2 = r.number(root, "", "gravity_mps2", c.gravity_mps2, 0.1, 100.0);
   readGyro(r, root, c.gyro);
   readSensors(r, root, c);
@@ -156,7 +172,9 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
 void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& c) {
   YAML::Emitter out;
   out.SetDoublePrecision(17);
-  auto vec = [&](const Vec3d& v) { out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq; };
+  auto vec = [&](const Vec3d& v) {
+    out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq;
+  };
   out << YAML::BeginMap;
   out << YAML::Key << "format" << YAML::Value << c.format;
   out << YAML::Key << "name" << YAML::Value << c.name;
@@ -168,19 +186,23 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   }
   if (c.turn_centre_x_m) out << YAML::Key << "turn_centre_x_m" << YAML::Value << *c.turn_centre_x_m;
   out << YAML::Key << "gravity_mps2" << YAML::Value << c.gravity_mps2;
-  out << YAML::Key << "gyro" << YAML::Value << YAML::BeginMap
-      << YAML::Key << "axes" << YAML::Value << (c.gyro.axes == GyroAxes::kThreeAxis ? "xyz" : "z")
-      << YAML::Key << "noise_rad_s" << YAML::Value << c.gyro.noise_rad_s
-      << YAML::Key << "bias_random_walk_rad_s_per_sqrt_s" << YAML::Value << c.gyro.bias_random_walk_rad_s_per_sqrt_s
-      << YAML::Key << "initial_bias_sigma_rad_s" << YAML::Value << c.gyro.initial_bias_sigma_rad_s << YAML::EndMap;
-  out << YAML::Key << "sun_sensor" << YAML::Value << YAML::BeginMap << YAML::Key << "mounting_rpy_rad" << YAML::Value;
+  out << YAML::Key << "gyro" << YAML::Value << YAML::BeginMap << YAML::Key << "axes" << YAML::Value
+      << (c.gyro.axes == GyroAxes::kThreeAxis ? "xyz" : "z") << YAML::Key << "noise_rad_s"
+      << YAML::Value << c.gyro.noise_rad_s << YAML::Key << "bias_random_walk_rad_s_per_sqrt_s"
+      << YAML::Value << c.gyro.bias_random_walk_rad_s_per_sqrt_s << YAML::Key
+      << "initial_bias_sigma_rad_s" << YAML::Value << c.gyro.initial_bias_sigma_rad_s
+      << YAML::EndMap;
+  out << YAML::Key << "sun_sensor" << YAML::Value << YAML::BeginMap << YAML::Key
+      << "mounting_rpy_rad" << YAML::Value;
   vec(so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));
   out << YAML::Key << "field_of_view_rad" << YAML::Value << c.sun_sensor.field_of_view_rad
       << YAML::Key << "noise" << YAML::Value << c.sun_sensor.noise << YAML::EndMap;
-  out << YAML::Key << "accelerometer" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm_m" << YAML::Value;
+  out << YAML::Key << "accelerometer" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm_m"
+      << YAML::Value;
   vec(c.accel.lever_arm_m);
   out << YAML::Key << "noise_mps2" << YAML::Value << c.accel.noise_mps2 << YAML::EndMap;
-  out << YAML::Key << "sun" << YAML::Value << YAML::BeginMap << YAML::Key << "direction_site" << YAML::Value;
+  out << YAML::Key << "sun" << YAML::Value << YAML::BeginMap << YAML::Key << "direction_site"
+      << YAML::Value;
   vec(c.sun.direction_site);
   if (!c.sun.azimuth_elevation.empty()) {
     out << YAML::Key << "azimuth_elevation" << YAML::Value << YAML::BeginSeq;
@@ -189,23 +211,23 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   }
   out << YAML::EndMap;
   const auto& s = c.slip_noise;
-  out << YAML::Key << "slip_noise" << YAML::Value << YAML::BeginMap
-      << YAML::Key << "longitudinal_mps" << YAML::Value << s.longitudinal_mps
-      << YAML::Key << "lateral_mps" << YAML::Value << s.lateral_mps
-      << YAML::Key << "normal_mps" << YAML::Value << s.normal_mps
+  out << YAML::Key << "slip_noise" << YAML::Value << YAML::BeginMap << YAML::Key
+      << "longitudinal_mps" << YAML::Value << s.longitudinal_mps << YAML::Key << "lateral_mps"
+      << YAML::Value << s.lateral_mps << YAML::Key << "normal_mps" << YAML::Value << s.normal_mps
       << YAML::Key << "spin_rad_s" << YAML::Value << s.spin_rad_s << YAML::EndMap;
   const auto& p = c.process;
-  out << YAML::Key << "process" << YAML::Value << YAML::BeginMap
-      << YAML::Key << "contact_angle_time_constant_s" << YAML::Value << p.contact_angle_time_constant_s
-      << YAML::Key << "contact_angle_noise_rad_per_sqrt_s" << YAML::Value << p.contact_angle_noise_rad_per_sqrt_s
-      << YAML::Key << "velocity_time_constant_s" << YAML::Value << p.velocity_time_constant_s
-      << YAML::Key << "velocity_noise_mps2_per_sqrt_hz" << YAML::Value << p.velocity_noise_mps2_per_sqrt_hz
-      << YAML::Key << "rate_time_constant_s" << YAML::Value << p.rate_time_constant_s
-      << YAML::Key << "rate_noise_rad_s2_per_sqrt_hz" << YAML::Value << p.rate_noise_rad_s2_per_sqrt_hz
+  out << YAML::Key << "process" << YAML::Value << YAML::BeginMap << YAML::Key
+      << "contact_angle_time_constant_s" << YAML::Value << p.contact_angle_time_constant_s
+      << YAML::Key << "contact_angle_noise_rad_per_sqrt_s" << YAML::Value
+      << p.contact_angle_noise_rad_per_sqrt_s << YAML::Key << "velocity_time_constant_s"
+      << YAML::Value << p.velocity_time_constant_s << YAML::Key << "velocity_noise_mps2_per_sqrt_hz"
+      << YAML::Value << p.velocity_noise_mps2_per_sqrt_hz << YAML::Key << "rate_time_constant_s"
+      << YAML::Value << p.rate_time_constant_s << YAML::Key << "rate_noise_rad_s2_per_sqrt_hz"
+      << YAML::Value << p.rate_noise_rad_s2_per_sqrt_hz << YAML::EndMap;
+  out << YAML::Key << "joint_sensors" << YAML::Value << YAML::BeginMap << YAML::Key
+      << "angle_noise_rad" << YAML::Value << c.joints.angle_noise_rad << YAML::Key
+      << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window
       << YAML::EndMap;
-  out << YAML::Key << "joint_sensors" << YAML::Value << YAML::BeginMap
-      << YAML::Key << "angle_noise_rad" << YAML::Value << c.joints.angle_noise_rad
-      << YAML::Key << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window << YAML::EndMap;
   out << YAML::EndMap;
 
   const std::filesystem::path tmp = yaml_file.string() + ".tmp";

@@ -21,14 +21,16 @@ using rover::kNumWheels;
 Posed toPose(const urdf::Pose& p) {
   Posed g;
   g.p = Vec3d(p.position.x, p.position.y, p.position.z);
-  g.R = Quatd(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z).normalized().toRotationMatrix();
+  g.R =
+      Quatd(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z).normalized().toRotationMatrix();
   return g;
 }
 
 /// Radius of a wheel link: its collision cylinder, else its visual cylinder.
 double wheelRadius(const urdf::LinkConstSharedPtr& link) {
   auto cyl = [](const urdf::GeometrySharedPtr& g) -> double {
-    if (g && g->type == urdf::Geometry::CYLINDER) return std::static_pointer_cast<urdf::Cylinder>(g)->radius;
+    if (g && g->type == urdf::Geometry::CYLINDER)
+      return std::static_pointer_cast<urdf::Cylinder>(g)->radius;
     return 0.0;
   };
   if (link->collision && cyl(link->collision->geometry) > 0) return cyl(link->collision->geometry);
@@ -58,14 +60,15 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
   const auto coords = coordinateMap(config);
   for (const auto& [joint, c] : coords) {
     if (!model->getJoint(joint)) {
-      throw InputError(source, 0, "joint '" + joint + "' (joints.csv column '" +
-                                      std::string(rover::kCoordNames[c]) + "') is not in the URDF");
+      throw InputError(source, 0,
+                       "joint '" + joint + "' (joints.csv column '" +
+                           std::string(rover::kCoordNames[c]) + "') is not in the URDF");
     }
   }
   rover::RoverGeometry geo;
   geo.name = model->getName();
-  std::map<std::string, int> joint_index;   // URDF joint name → index in geo.joints
-  std::map<std::string, int> link_parent;   // link name → index of the joint that carries it
+  std::map<std::string, int> joint_index;  // URDF joint name → index in geo.joints
+  std::map<std::string, int> link_parent;  // link name → index of the joint that carries it
   std::deque<urdf::LinkConstSharedPtr> queue{model->getRoot()};
   link_parent[model->getRoot()->name] = -1;
   while (!queue.empty()) {  // breadth-first: parents before children
@@ -80,7 +83,9 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       if (j->type == urdf::Joint::FIXED) {
         kj.axis.setZero();
       } else if (j->type != urdf::Joint::REVOLUTE && j->type != urdf::Joint::CONTINUOUS) {
-        throw InputError(source, 0, "joint '" + j->name + "': only revolute, continuous and fixed joints are supported");
+        throw InputError(
+            source, 0,
+            "joint '" + j->name + "': only revolute, continuous and fixed joints are supported");
       } else if (kj.axis.norm() < 1e-9) {
         throw InputError(source, 0, "joint '" + j->name + "': zero axis");
       } else {
@@ -90,14 +95,17 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
         } else if (j->mimic) {
           const auto m = coords.find(j->mimic->joint_name);
           if (m == coords.end()) {
-            throw InputError(source, 0, "joint '" + j->name + "' mimics '" + j->mimic->joint_name +
-                                            "', which is not mapped to a joints.csv column");
+            throw InputError(source, 0,
+                             "joint '" + j->name + "' mimics '" + j->mimic->joint_name +
+                                 "', which is not mapped to a joints.csv column");
           }
           kj.coord = m->second;
           kj.multiplier = j->mimic->multiplier;
           kj.offset = j->mimic->offset;
         } else {
-          throw InputError(source, 0, "joint '" + j->name + "' is not mapped to a joints.csv column (rover.yaml 'joints')");
+          throw InputError(
+              source, 0,
+              "joint '" + j->name + "' is not mapped to a joints.csv column (rover.yaml 'joints')");
         }
       }
       joint_index[j->name] = static_cast<int>(geo.joints.size());
@@ -112,12 +120,16 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
     const int w = c - rover::kPsi1;
     const int d = joint_index.at(name);
     if (geo.joints[d].coord != c || (geo.joints[d].axis - Vec3d::UnitY()).norm() > 1e-9) {
-      throw InputError(source, 0, "wheel drive joint '" + name + "' must rotate about +y of its frame (axis 0 1 0)");
+      throw InputError(
+          source, 0,
+          "wheel drive joint '" + name + "' must rotate about +y of its frame (axis 0 1 0)");
     }
     geo.wheels[w].drive_joint = d;
     geo.wheels[w].radius = wheelRadius(model->getLink(model->getJoint(name)->child_link_name));
     if (!(geo.wheels[w].radius > 0.0)) {
-      throw InputError(source, 0, "wheel link of joint '" + name + "' has no cylinder geometry giving a positive radius");
+      throw InputError(
+          source, 0,
+          "wheel link of joint '" + name + "' has no cylinder geometry giving a positive radius");
     }
   }
   if (config.turn_centre_x_m) {
@@ -138,7 +150,8 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
   return geo;
 }
 
-rover::RoverGeometry loadRoverGeometry(const std::filesystem::path& urdf_file, const RoverConfig& config) {
+rover::RoverGeometry loadRoverGeometry(const std::filesystem::path& urdf_file,
+                                       const RoverConfig& config) {
   std::ifstream f(urdf_file);
   if (!f) throw InputError(urdf_file.string(), 0, "required file is missing or unreadable");
   std::stringstream ss;

@@ -18,13 +18,15 @@ class YamlReader {
  public:
   explicit YamlReader(std::string file) : file_(std::move(file)) {}
 
-  [[noreturn]] void fail(const YAML::Node& n, const std::string& key, const std::string& what) const {
+  [[noreturn]] void fail(const YAML::Node& n, const std::string& key,
+                         const std::string& what) const {
     const long line = n.IsDefined() ? static_cast<long>(n.Mark().line) + 1 : 0;
     throw InputError(file_, line, "key '" + key + "': " + what);
   }
 
   /// Checks that a map holds only the given keys (typos are errors, not silent defaults).
-  void onlyKeys(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& keys) const {
+  void onlyKeys(const YAML::Node& map, const std::string& prefix,
+                const std::set<std::string>& keys) const {
     if (!map.IsMap()) fail(map, prefix, "expected a mapping");
     for (const auto& kv : map) {
       const std::string k = kv.first.as<std::string>();
@@ -53,16 +55,20 @@ class YamlReader {
     const YAML::Node n = map[key];
     if (!n.IsDefined() || n.IsNull()) return value;
     int v = 0;
-    if (!n.IsScalar() || !YAML::convert<int>::decode(n, v)) fail(n, join(prefix, key), "expected an integer");
-    if (v < lo || v > hi) fail(n, join(prefix, key), "value " + std::to_string(v) + " out of range");
+    if (!n.IsScalar() || !YAML::convert<int>::decode(n, v))
+      fail(n, join(prefix, key), "expected an integer");
+    if (v < lo || v > hi)
+      fail(n, join(prefix, key), "value " + std::to_string(v) + " out of range");
     return v;
   }
 
-  bool boolean(const YAML::Node& map, const std::string& prefix, const std::string& key, bool value) const {
+  bool boolean(const YAML::Node& map, const std::string& prefix, const std::string& key,
+               bool value) const {
     const YAML::Node n = map[key];
     if (!n.IsDefined() || n.IsNull()) return value;
     bool v = false;
-    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v)) fail(n, join(prefix, key), "expected true or false");
+    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v))
+      fail(n, join(prefix, key), "expected true or false");
     return v;
   }
 
@@ -74,10 +80,12 @@ class YamlReader {
     return n.as<std::string>();
   }
 
-  Vec3d vec3(const YAML::Node& map, const std::string& prefix, const std::string& key, Vec3d value) const {
+  Vec3d vec3(const YAML::Node& map, const std::string& prefix, const std::string& key,
+             Vec3d value) const {
     const YAML::Node n = map[key];
     if (!n.IsDefined() || n.IsNull()) return value;
-    if (!n.IsSequence() || n.size() != 3) fail(n, join(prefix, key), "expected a list of 3 numbers");
+    if (!n.IsSequence() || n.size() != 3)
+      fail(n, join(prefix, key), "expected a list of 3 numbers");
     for (int i = 0; i < 3; ++i) {
       double v = 0.0;
       if (!n[i].IsScalar() || !YAML::convert<double>::decode(n[i], v) || !std::isfinite(v)) {
@@ -88,7 +96,8 @@ class YamlReader {
     return value;
   }
 
-  YAML::Node section(const YAML::Node& root, const std::string& key, const std::set<std::string>& keys) const {
+  YAML::Node section(const YAML::Node& root, const std::string& key,
+                     const std::set<std::string>& keys) const {
     const YAML::Node n = root[key];
     if (!n.IsDefined() || n.IsNull()) return YAML::Node(YAML::NodeType::Map);
     onlyKeys(n, key, keys);

@@ -29,7 +29,8 @@ Eigen::MatrixXd jointRates(std::span<const double> t, const Eigen::MatrixXd& ang
       if (order == 2) A(r, 2) = tau * tau;
     }
     // Row 1 of the pseudo-inverse gives the derivative weights for every channel at once.
-    const Eigen::MatrixXd pinv = A.colPivHouseholderQr().solve(Eigen::MatrixXd::Identity(width, width));
+    const Eigen::MatrixXd pinv =
+        A.colPivHouseholderQr().solve(Eigen::MatrixXd::Identity(width, width));
     rates.row(k) = pinv.row(1) * angles.middleRows(first, width);
   }
   return rates;

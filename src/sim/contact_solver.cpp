@@ -46,7 +46,8 @@ double ContactSolver::gap(const Rim& rim, double xi) const {
   return p.z() - terrain_.height(p.x(), p.y());
 }
 
-// d gap / dξ = (rim tangent) · (−f_x, −f_y, 1): zero exactly where the rim is tangent to the surface.
+// d gap / dξ = (rim tangent) · (−f_x, −f_y, 1): zero exactly where the rim is tangent to the
+// surface.
 double ContactSolver::gapSlope(const Rim& rim, double xi) const {
   const Vec3d p = rim.centre + rim.radius * (std::sin(xi) * rim.x_axis - std::cos(xi) * rim.z_axis);
   const Vec3d tangent = rim.radius * (std::cos(xi) * rim.x_axis + std::sin(xi) * rim.z_axis);
@@ -133,22 +134,25 @@ ContactState ContactSolver::solve(double x, double y, double yaw, const Vec2d& s
     if (!u.allFinite() || u.tail<3>().cwiseAbs().maxCoeff() > options_.max_joint_angle_rad) break;
   }
   std::ostringstream os;
-  os << "contact solver: no contact configuration at x = " << x << " m, y = " << y << " m, yaw = " << yaw
-     << " rad (suspension angles " << u.tail<3>().transpose() << ")";
+  os << "contact solver: no contact configuration at x = " << x << " m, y = " << y
+     << " m, yaw = " << yaw << " rad (suspension angles " << u.tail<3>().transpose() << ")";
   throw ContactError(os.str());
 }
 
-std::array<WheelContactCheck, kNumWheels> ContactSolver::check(double x, double y, double yaw, const Vec2d& steering,
+std::array<WheelContactCheck, kNumWheels> ContactSolver::check(double x, double y, double yaw,
+                                                               const Vec2d& steering,
                                                                const ContactState& s) const {
   const auto r = rims(bodyPose(x, y, yaw, s), joints(s.gamma, steering));
   std::array<WheelContactCheck, kNumWheels> out;
   for (int i = 0; i < kNumWheels; ++i) {
     const Rim& rim = r[i];
     const double xi = s.xi[i];
-    const Vec3d p = rim.centre + rim.radius * (std::sin(xi) * rim.x_axis - std::cos(xi) * rim.z_axis);
+    const Vec3d p =
+        rim.centre + rim.radius * (std::sin(xi) * rim.x_axis - std::cos(xi) * rim.z_axis);
     const Vec3d tangent = (std::cos(xi) * rim.x_axis + std::sin(xi) * rim.z_axis).normalized();
     out[i].gap_m = gap(rim, xi);
-    out[i].tangency_rad = std::asin(std::min(1.0, std::abs(tangent.dot(terrain_.normal(p.x(), p.y())))));
+    out[i].tangency_rad =
+        std::asin(std::min(1.0, std::abs(tangent.dot(terrain_.normal(p.x(), p.y())))));
     out[i].min_rim_gap_m = out[i].gap_m;
     for (int k = 0; k <= 720; ++k) {
       out[i].min_rim_gap_m = std::min(out[i].min_rim_gap_m, gap(rim, -0.5 * M_PI + M_PI * k / 720));

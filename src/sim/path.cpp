@@ -7,9 +7,13 @@
 namespace traverse::sim {
 namespace {
 
-double smoothstep(double u) { return u <= 0 ? 0 : u >= 1 ? 1 : u * u * u * (10 - 15 * u + 6 * u * u); }
+double smoothstep(double u) {
+  return u <= 0 ? 0 : u >= 1 ? 1 : u * u * u * (10 - 15 * u + 6 * u * u);
+}
 // ∫₀ᵘ smoothstep = 2.5u⁴ − 3u⁵ + u⁶
-double smoothstepIntegral(double u) { return u <= 0 ? 0 : u >= 1 ? u - 0.5 : u * u * u * u * (2.5 - 3 * u + u * u); }
+double smoothstepIntegral(double u) {
+  return u <= 0 ? 0 : u >= 1 ? u - 0.5 : u * u * u * u * (2.5 - 3 * u + u * u);
+}
 
 /// Speed profile of a move of `amount` (> 0) at cruise `c` with ramps of `ramp` s.
 struct Profile {
@@ -42,7 +46,8 @@ Vec2d steeringFor(const rover::RoverGeometry& geo, const Leg& leg) {
   for (int k = 0; k < 2; ++k) {
     const Vec3d p = kin[k == 0 ? 0 : 3].T_body_wheel.p;  // wheels 1 and 4 are the steered ones
     const double dx = p.x() - geo.turn_centre_x;
-    s[k] = leg.kind == Leg::Kind::kTurnInPlace ? -std::atan(dx / p.y()) : std::atan(dx / (leg.radius_m - p.y()));
+    s[k] = leg.kind == Leg::Kind::kTurnInPlace ? -std::atan(dx / p.y())
+                                               : std::atan(dx / (leg.radius_m - p.y()));
   }
   return s;
 }
@@ -62,14 +67,17 @@ std::vector<PathSample> samplePath(const Scenario& sc, const rover::RoverGeometr
   };
   for (const Leg& leg : sc.legs) {
     if (leg.kind == Leg::Kind::kRest) {
-      emit_until(leg.duration_s, [&](double, double t) { return PathSample{t, centre, yaw, steering, 0, 0, 0, false}; });
+      emit_until(leg.duration_s, [&](double, double t) {
+        return PathSample{t, centre, yaw, steering, 0, 0, 0, false};
+      });
       continue;
     }
     const Vec2d target = steeringFor(geo, leg);
     if ((target - steering).cwiseAbs().maxCoeff() > 1e-12) {
       const Vec2d from = steering;
       emit_until(leg.steer_s, [&](double tau, double t) {
-        return PathSample{t, centre, yaw, from + (target - from) * smoothstep(tau / leg.steer_s), 0, 0, 0, false};
+        return PathSample{t, centre, yaw, from + (target - from) * smoothstep(tau / leg.steer_s),
+                          0, 0,      0,   false};
       });
       steering = target;
     }

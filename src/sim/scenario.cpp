@@ -45,7 +45,8 @@ void applyOverride(YAML::Node root, const std::string& assignment) {
   YAML::Node parent = chain.back();
   if (parent.IsSequence()) {
     const size_t idx = std::stoul(parts.back());
-    if (idx >= parent.size()) throw InputError("--set", 0, "key '" + key + "': no item " + parts.back());
+    if (idx >= parent.size())
+      throw InputError("--set", 0, "key '" + key + "': no item " + parts.back());
     parent[idx] = value;
   } else {
     parent[parts.back()] = value;
@@ -53,16 +54,25 @@ void applyOverride(YAML::Node root, const std::string& assignment) {
 }
 
 Leg readLeg(const YamlReader& r, const YAML::Node& n, const std::string& prefix) {
-  r.onlyKeys(n, prefix, {"rest", "straight", "arc", "turn", "radius_m", "speed_mps", "rate_rad_s", "ramp_s", "steer_s"});
+  r.onlyKeys(n, prefix,
+             {"rest", "straight", "arc", "turn", "radius_m", "speed_mps", "rate_rad_s", "ramp_s",
+              "steer_s"});
   Leg leg;
   int kinds = 0;
-  if (n["rest"]) leg.kind = Leg::Kind::kRest, leg.duration_s = r.number(n, prefix, "rest", 0, 0, 1e6), ++kinds;
-  if (n["straight"]) leg.kind = Leg::Kind::kStraight, leg.distance_m = r.number(n, prefix, "straight", 0, -1e4, 1e4), ++kinds;
-  if (n["arc"]) leg.kind = Leg::Kind::kArc, leg.distance_m = r.number(n, prefix, "arc", 0, -1e4, 1e4), ++kinds;
-  if (n["turn"]) leg.kind = Leg::Kind::kTurnInPlace, leg.angle_rad = r.number(n, prefix, "turn", 0, -1e3, 1e3), ++kinds;
+  if (n["rest"])
+    leg.kind = Leg::Kind::kRest, leg.duration_s = r.number(n, prefix, "rest", 0, 0, 1e6), ++kinds;
+  if (n["straight"])
+    leg.kind = Leg::Kind::kStraight, leg.distance_m = r.number(n, prefix, "straight", 0, -1e4, 1e4),
+    ++kinds;
+  if (n["arc"])
+    leg.kind = Leg::Kind::kArc, leg.distance_m = r.number(n, prefix, "arc", 0, -1e4, 1e4), ++kinds;
+  if (n["turn"])
+    leg.kind = Leg::Kind::kTurnInPlace, leg.angle_rad = r.number(n, prefix, "turn", 0, -1e3, 1e3),
+    ++kinds;
   if (kinds != 1) r.fail(n, prefix, "a leg needs exactly one of rest, straight, arc, turn");
   leg.radius_m = r.number(n, prefix, "radius_m", leg.radius_m, -1e4, 1e4);
-  if (leg.kind == Leg::Kind::kArc && std::abs(leg.radius_m) < 0.3) r.fail(n["radius_m"], prefix + ".radius_m", "|radius| must be ≥ 0.3 m");
+  if (leg.kind == Leg::Kind::kArc && std::abs(leg.radius_m) < 0.3)
+    r.fail(n["radius_m"], prefix + ".radius_m", "|radius| must be ≥ 0.3 m");
   leg.speed_mps = r.number(n, prefix, "speed_mps", leg.speed_mps, 1e-4, 2.0);
   leg.rate_rad_s = r.number(n, prefix, "rate_rad_s", leg.rate_rad_s, 1e-4, 2.0);
   leg.ramp_s = r.number(n, prefix, "ramp_s", leg.ramp_s, 0.01, 1e3);
@@ -72,11 +82,14 @@ Leg readLeg(const YamlReader& r, const YAML::Node& n, const std::string& prefix)
 
 void readTerrain(const YamlReader& r, const YAML::Node& root, TerrainSpec& t) {
   const YAML::Node n = r.section(root, "terrain",
-      {"type", "slope_rad", "direction_rad", "step_height_m", "step_x_m", "step_y_min_m", "step_y_max_m",
-       "step_ramp_m", "rms_height_m", "correlation_length_m", "bumps_per_m2", "base_slope_rad"});
+                                 {"type", "slope_rad", "direction_rad", "step_height_m", "step_x_m",
+                                  "step_y_min_m", "step_y_max_m", "step_ramp_m", "rms_height_m",
+                                  "correlation_length_m", "bumps_per_m2", "base_slope_rad"});
   t.type = r.string(n, "terrain", "type", t.type);
-  if (t.type != "flat" && t.type != "plane" && t.type != "undulating" && t.type != "step" && t.type != "rough") {
-    r.fail(n["type"], "terrain.type", "expected flat, plane, undulating, step or rough, got '" + t.type + "'");
+  if (t.type != "flat" && t.type != "plane" && t.type != "undulating" && t.type != "step" &&
+      t.type != "rough") {
+    r.fail(n["type"], "terrain.type",
+           "expected flat, plane, undulating, step or rough, got '" + t.type + "'");
   }
   t.slope_rad = r.number(n, "terrain", "slope_rad", t.slope_rad, -1.0, 1.0);
   t.direction_rad = r.number(n, "terrain", "direction_rad", t.direction_rad, -10, 10);
@@ -86,18 +99,23 @@ void readTerrain(const YamlReader& r, const YAML::Node& root, TerrainSpec& t) {
   t.step_y_max_m = r.number(n, "terrain", "step_y_max_m", t.step_y_max_m, -1e4, 1e4);
   t.step_ramp_m = r.number(n, "terrain", "step_ramp_m", t.step_ramp_m, 0.01, 10);
   t.rms_height_m = r.number(n, "terrain", "rms_height_m", t.rms_height_m, 0, 0.2);
-  t.correlation_length_m = r.number(n, "terrain", "correlation_length_m", t.correlation_length_m, 0.05, 100);
+  t.correlation_length_m =
+      r.number(n, "terrain", "correlation_length_m", t.correlation_length_m, 0.05, 100);
   t.bumps_per_m2 = r.number(n, "terrain", "bumps_per_m2", t.bumps_per_m2, 0.01, 100);
   t.base_slope_rad = r.number(n, "terrain", "base_slope_rad", t.base_slope_rad, -1.0, 1.0);
 }
 
 void readSlip(const YamlReader& r, const YAML::Node& root, SlipSpec& s) {
-  const YAML::Node n = r.section(root, "slip",
-      {"longitudinal_white_mps", "longitudinal_correlated_mps", "lateral_correlated_mps", "correlation_time_s",
-       "burst_rate_per_m", "burst_duration_s", "burst_mps"});
-  s.longitudinal_white_mps = r.number(n, "slip", "longitudinal_white_mps", s.longitudinal_white_mps, 0, 1);
-  s.longitudinal_correlated_mps = r.number(n, "slip", "longitudinal_correlated_mps", s.longitudinal_correlated_mps, 0, 1);
-  s.lateral_correlated_mps = r.number(n, "slip", "lateral_correlated_mps", s.lateral_correlated_mps, 0, 1);
+  const YAML::Node n =
+      r.section(root, "slip",
+                {"longitudinal_white_mps", "longitudinal_correlated_mps", "lateral_correlated_mps",
+                 "correlation_time_s", "burst_rate_per_m", "burst_duration_s", "burst_mps"});
+  s.longitudinal_white_mps =
+      r.number(n, "slip", "longitudinal_white_mps", s.longitudinal_white_mps, 0, 1);
+  s.longitudinal_correlated_mps =
+      r.number(n, "slip", "longitudinal_correlated_mps", s.longitudinal_correlated_mps, 0, 1);
+  s.lateral_correlated_mps =
+      r.number(n, "slip", "lateral_correlated_mps", s.lateral_correlated_mps, 0, 1);
   s.correlation_time_s = r.number(n, "slip", "correlation_time_s", s.correlation_time_s, 0.01, 1e4);
   s.burst_rate_per_m = r.number(n, "slip", "burst_rate_per_m", s.burst_rate_per_m, 0, 100);
   s.burst_duration_s = r.number(n, "slip", "burst_duration_s", s.burst_duration_s, 0.01, 1e3);
@@ -106,8 +124,9 @@ void readSlip(const YamlReader& r, const YAML::Node& root, SlipSpec& s) {
 
 void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
   const YAML::Node n = r.section(root, "sensors", {"gyro", "sun", "accel", "joints", "cmd"});
-  const YAML::Node g = r.section(n, "gyro", {"rate_hz", "axes", "noise_rad_s", "bias_rad_s",
-                                             "bias_random_walk_rad_s_per_sqrt_s", "quantum_rad_s"});
+  const YAML::Node g = r.section(n, "gyro",
+                                 {"rate_hz", "axes", "noise_rad_s", "bias_rad_s",
+                                  "bias_random_walk_rad_s_per_sqrt_s", "quantum_rad_s"});
   const std::string pg = "sensors.gyro";
   s.gyro_rate_hz = r.number(g, pg, "rate_hz", s.gyro_rate_hz, 0.1, 2000);
   const std::string axes = r.string(g, pg, "axes", s.gyro_three_axis ? "xyz" : "z");
@@ -115,10 +134,11 @@ void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
   s.gyro_three_axis = axes == "xyz";
   s.gyro_noise_rad_s = r.number(g, pg, "noise_rad_s", s.gyro_noise_rad_s, 0, 1);
   s.gyro_bias_rad_s = r.vec3(g, pg, "bias_rad_s", s.gyro_bias_rad_s);
-  s.gyro_bias_random_walk_rad_s_per_sqrt_s =
-      r.number(g, pg, "bias_random_walk_rad_s_per_sqrt_s", s.gyro_bias_random_walk_rad_s_per_sqrt_s, 0, 1);
+  s.gyro_bias_random_walk_rad_s_per_sqrt_s = r.number(
+      g, pg, "bias_random_walk_rad_s_per_sqrt_s", s.gyro_bias_random_walk_rad_s_per_sqrt_s, 0, 1);
   s.gyro_quantum_rad_s = r.number(g, pg, "quantum_rad_s", s.gyro_quantum_rad_s, 0, 1);
-  const YAML::Node u = r.section(n, "sun", {"rate_hz", "noise", "fov_rad", "direction_site", "azimuth_rate_rad_s"});
+  const YAML::Node u =
+      r.section(n, "sun", {"rate_hz", "noise", "fov_rad", "direction_site", "azimuth_rate_rad_s"});
   const std::string pu = "sensors.sun";
   s.sun_rate_hz = r.number(u, pu, "rate_hz", s.sun_rate_hz, 0, 2000);
   s.sun_noise = r.number(u, pu, "noise", s.sun_noise, 0, 1);
@@ -130,8 +150,9 @@ void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
   s.accel_rate_hz = r.number(a, "sensors.accel", "rate_hz", s.accel_rate_hz, 0.1, 2000);
   s.accel_noise_mps2 = r.number(a, "sensors.accel", "noise_mps2", s.accel_noise_mps2, 0, 10);
   s.accel_lever_arm_m = r.vec3(a, "sensors.accel", "lever_arm_m", s.accel_lever_arm_m);
-  const YAML::Node j = r.section(n, "joints", {"rate_hz", "angle_noise_rad", "steering_noise_rad", "angle_quantum_rad",
-                                               "wheel_noise_rad", "wheel_quantum_rad"});
+  const YAML::Node j = r.section(n, "joints",
+                                 {"rate_hz", "angle_noise_rad", "steering_noise_rad",
+                                  "angle_quantum_rad", "wheel_noise_rad", "wheel_quantum_rad"});
   const std::string pj = "sensors.joints";
   s.joints_rate_hz = r.number(j, pj, "rate_hz", s.joints_rate_hz, 0.1, 2000);
   s.joint_angle_noise_rad = r.number(j, pj, "angle_noise_rad", s.joint_angle_noise_rad, 0, 1);
@@ -155,12 +176,14 @@ Scenario loadScenario(const std::string& name_or_path, const std::filesystem::pa
   try {
     root = YAML::LoadFile(file.string());
   } catch (const YAML::Exception& e) {
-    throw InputError(file.string(), e.mark.is_null() ? 0 : e.mark.line + 1, "unreadable YAML: " + e.msg);
+    throw InputError(file.string(), e.mark.is_null() ? 0 : e.mark.line + 1,
+                     "unreadable YAML: " + e.msg);
   }
   for (const std::string& o : overrides) applyOverride(root, o);
   const YamlReader r(file.string());
-  r.onlyKeys(root, "", {"name", "rover", "truth_rate_hz", "truth_output_hz", "gravity_mps2", "start", "terrain",
-                        "path", "slip", "sensors"});
+  r.onlyKeys(root, "",
+             {"name", "rover", "truth_rate_hz", "truth_output_hz", "gravity_mps2", "start",
+              "terrain", "path", "slip", "sensors"});
   Scenario s;
   s.name = r.string(root, "", "name", file.stem().string());
   s.rover = r.string(root, "", "rover", s.rover);
@@ -168,14 +191,16 @@ Scenario loadScenario(const std::string& name_or_path, const std::filesystem::pa
   s.truth_output_hz = r.number(root, "", "truth_output_hz", s.truth_output_hz, 0.1, 10000);
   s.gravity_mps2 = r.number(root, "", "gravity_mps2", s.gravity_mps2, 0.1, 100);
   const YAML::Node start = r.section(root, "start", {"x_m", "y_m", "yaw_rad"});
-  s.start = Vec3d(r.number(start, "start", "x_m", 0, -1e5, 1e5), r.number(start, "start", "y_m", 0, -1e5, 1e5),
+  s.start = Vec3d(r.number(start, "start", "x_m", 0, -1e5, 1e5),
+                  r.number(start, "start", "y_m", 0, -1e5, 1e5),
                   r.number(start, "start", "yaw_rad", 0, -10, 10));
   const YAML::Node path = root["path"];
   if (!path.IsSequence() || path.size() == 0) {
     const long line = path.IsDefined() ? static_cast<long>(path.Mark().line) + 1 : 0;
     throw InputError(file.string(), line, "key 'path': expected a list of legs");
   }
-  for (size_t i = 0; i < path.size(); ++i) s.legs.push_back(readLeg(r, path[i], "path." + std::to_string(i)));
+  for (size_t i = 0; i < path.size(); ++i)
+    s.legs.push_back(readLeg(r, path[i], "path." + std::to_string(i)));
   readTerrain(r, root, s.terrain);
   readSlip(r, root, s.slip);
   readSensors(r, root, s.sensors);

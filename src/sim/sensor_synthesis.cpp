@@ -14,11 +14,14 @@ namespace {
 
 using rover::kNumWheels;
 
-double quantize(double x, double q) { return q > 0 ? q * std::round(x / q) : x; }
+double quantize(double x, double q) {
+  return q > 0 ? q * std::round(x / q) : x;
+}
 
 /// A stream with the given columns sampled at `rate_hz` over the truth's time span.
-io::Stream sampled(const std::vector<TruthSample>& truth, double rate_hz, std::vector<std::string> columns,
-                   const std::function<void(const TruthSample&, Eigen::Ref<Eigen::RowVectorXd>)>& fill) {
+io::Stream sampled(
+    const std::vector<TruthSample>& truth, double rate_hz, std::vector<std::string> columns,
+    const std::function<void(const TruthSample&, Eigen::Ref<Eigen::RowVectorXd>)>& fill) {
   io::Stream s;
   s.columns = std::move(columns);
   const double t_end = truth.back().t;
@@ -57,13 +60,15 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
   }
   c.accel.lever_arm_m = s.accel_lever_arm_m;
   c.accel.noise_mps2 = s.accel_noise_mps2;
-  c.joints.angle_noise_rad = std::max(s.joint_angle_noise_rad, s.joint_quantum_rad / std::sqrt(12.0));
+  c.joints.angle_noise_rad =
+      std::max(s.joint_angle_noise_rad, s.joint_quantum_rad / std::sqrt(12.0));
 }
 
 }  // namespace
 
 TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t) {
-  const auto it = std::upper_bound(truth.begin(), truth.end(), t, [](double v, const TruthSample& s) { return v < s.t; });
+  const auto it = std::upper_bound(truth.begin(), truth.end(), t,
+                                   [](double v, const TruthSample& s) { return v < s.t; });
   if (it == truth.begin()) return truth.front();
   if (it == truth.end()) return truth.back();
   const TruthSample& a = *(it - 1);
@@ -85,9 +90,10 @@ TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t) {
   return s;
 }
 
-io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config, const rover::RoverGeometry& geo,
-                              const std::filesystem::path& rover_dir, const std::vector<TruthSample>& truth,
-                              uint64_t seed) {
+io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
+                              const rover::RoverGeometry& geo,
+                              const std::filesystem::path& rover_dir,
+                              const std::vector<TruthSample>& truth, uint64_t seed) {
   const SensorSpec& s = sc.sensors;
   configureLog(sc, truth.back().t, config);
   io::TraverseLog log;
@@ -96,8 +102,9 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config, const 
   log.geometry = geo;
 
   Rng gyro_rng(seed, 1), sun_rng(seed, 2), accel_rng(seed, 3), joint_rng(seed, 4);
-  const std::vector<std::string> gyro_cols =
-      s.gyro_three_axis ? std::vector<std::string>{"wx", "wy", "wz"} : std::vector<std::string>{"wz"};
+  const std::vector<std::string> gyro_cols = s.gyro_three_axis
+                                                 ? std::vector<std::string>{"wx", "wy", "wz"}
+                                                 : std::vector<std::string>{"wz"};
   log.gyro = sampled(truth, s.gyro_rate_hz, gyro_cols, [&](const TruthSample& x, auto row) {
     const Vec3d w = sensors::gyroPredict<double>(x.w_body, x.gyro_bias);  // K-12
     for (Eigen::Index c = 0; c < row.size(); ++c) {
@@ -111,32 +118,37 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config, const 
   log.joints = sampled(truth, s.joints_rate_hz, joint_cols, [&](const TruthSample& x, auto row) {
     for (int c = 0; c < rover::kNumCoords; ++c) {
       const bool wheel = c >= rover::kPsi1;
-      const double noise = wheel ? s.wheel_angle_noise_rad
+      const double noise = wheel                  ? s.wheel_angle_noise_rad
                            : c >= rover::kLambda1 ? s.steering_noise_rad
                                                   : s.joint_angle_noise_rad;
-      row[c] = quantize(x.joints[c] + noise * joint_rng.normal(), wheel ? s.wheel_quantum_rad : s.joint_quantum_rad);
+      row[c] = quantize(x.joints[c] + noise * joint_rng.normal(),
+                        wheel ? s.wheel_quantum_rad : s.joint_quantum_rad);
     }
   });
 
   if (s.sun_rate_hz > 0) {
     sensors::SunSensorGeometry sg{config.sun_sensor.R_body_sensor, 0.5 * s.sun_fov_rad};
-    log.sun = sampled(truth, s.sun_rate_hz, {"s1", "s2", "valid"}, [&](const TruthSample& x, auto row) {
-      const Vec3d sun = sunAt(s, x.t);
-      const double n1 = sun_rng.normal(), n2 = sun_rng.normal();
-      if (!sensors::sunInFieldOfView(x.q_site_body, sg, sun)) {
-        row << 0.0, 0.0, 0.0;
-        return;
-      }
-      const Vec2d m = sensors::sunSensorPredict<double>(x.q_site_body, sg, sun);  // K-15, K-16
-      row << std::clamp(m.x() + s.sun_noise * n1, -1.0, 1.0), std::clamp(m.y() + s.sun_noise * n2, -1.0, 1.0), 1.0;
-    });
+    log.sun =
+        sampled(truth, s.sun_rate_hz, {"s1", "s2", "valid"}, [&](const TruthSample& x, auto row) {
+          const Vec3d sun = sunAt(s, x.t);
+          const double n1 = sun_rng.normal(), n2 = sun_rng.normal();
+          if (!sensors::sunInFieldOfView(x.q_site_body, sg, sun)) {
+            row << 0.0, 0.0, 0.0;
+            return;
+          }
+          const Vec2d m = sensors::sunSensorPredict<double>(x.q_site_body, sg, sun);  // K-15, K-16
+          row << std::clamp(m.x() + s.sun_noise * n1, -1.0, 1.0),
+              std::clamp(m.y() + s.sun_noise * n2, -1.0, 1.0), 1.0;
+        });
   }
   if (s.accel) {
-    log.accel = sampled(truth, s.accel_rate_hz, {"ax", "ay", "az"}, [&](const TruthSample& x, auto row) {
-      const Vec3d a = sensors::accelPredict<double>(x.q_site_body, x.a_body, x.v_body, x.w_body, x.w_dot_body,
-                                                    s.accel_lever_arm_m, sc.gravity_mps2);  // K-10
-      for (int c = 0; c < 3; ++c) row[c] = a[c] + s.accel_noise_mps2 * accel_rng.normal();
-    });
+    log.accel =
+        sampled(truth, s.accel_rate_hz, {"ax", "ay", "az"}, [&](const TruthSample& x, auto row) {
+          const Vec3d a = sensors::accelPredict<double>(x.q_site_body, x.a_body, x.v_body, x.w_body,
+                                                        x.w_dot_body, s.accel_lever_arm_m,
+                                                        sc.gravity_mps2);  // K-10
+          for (int c = 0; c < 3; ++c) row[c] = a[c] + s.accel_noise_mps2 * accel_rng.normal();
+        });
   }
   if (s.cmd) {
     log.cmd = sampled(truth, s.joints_rate_hz, {"vx", "vy", "vz", "wx", "wy", "wz"},
@@ -144,7 +156,8 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config, const 
   }
   std::vector<std::string> truth_cols = {"x", "y", "z", "qw", "qx", "qy", "qz"};
   for (int i = 1; i <= kNumWheels; ++i) truth_cols.push_back("xi" + std::to_string(i));
-  for (const char* c : {"bx", "by", "bz", "vx", "vy", "vz", "wx", "wy", "wz"}) truth_cols.emplace_back(c);
+  for (const char* c : {"bx", "by", "bz", "vx", "vy", "vz", "wx", "wy", "wz"})
+    truth_cols.emplace_back(c);
   log.truth = sampled(truth, sc.truth_output_hz, truth_cols, [&](const TruthSample& x, auto row) {
     const Quatd& q = x.q_site_body;
     row.head(7) << x.p_site.x(), x.p_site.y(), x.p_site.z(), q.w(), q.x(), q.y(), q.z();

@@ -10,9 +10,10 @@
 
 namespace traverse::sim {
 
-io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config, const rover::RoverGeometry& geo,
-                              const std::filesystem::path& rover_dir, const std::vector<TruthSample>& truth,
-                              uint64_t seed);
+io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
+                              const rover::RoverGeometry& geo,
+                              const std::filesystem::path& rover_dir,
+                              const std::vector<TruthSample>& truth, uint64_t seed);
 
 /// Truth interpolated at time t (linear; slerp for attitude).
 TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t);

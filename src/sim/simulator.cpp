@@ -6,27 +6,31 @@
 #include <cmath>
 #include <memory>
 
+#include "sim/sensor_synthesis.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/rover/nominal_slip.h"
 #include "traverse/sim/random.h"
 #include "traverse/sim/terrain.h"
-#include "sim/sensor_synthesis.h"
 
 namespace traverse::sim {
 namespace {
 
 using rover::kNumWheels;
 
-std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario& sc, uint64_t seed) {
+std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario& sc,
+                                           uint64_t seed) {
   if (t.type == "plane") return std::make_shared<PlaneTerrain>(t.slope_rad, t.direction_rad);
   if (t.type == "undulating") return std::make_shared<UndulatingTerrain>();
   if (t.type == "step") {
-    return std::make_shared<StepTerrain>(t.step_height_m, t.step_x_m, t.step_y_min_m, t.step_y_max_m, t.step_ramp_m);
+    return std::make_shared<StepTerrain>(t.step_height_m, t.step_x_m, t.step_y_min_m,
+                                         t.step_y_max_m, t.step_ramp_m);
   }
   if (t.type == "rough") {
     // Cover the whole path with a margin.
     double reach = 0;
-    for (const Leg& l : sc.legs) reach += std::abs(l.distance_m) * (l.kind == Leg::Kind::kStraight || l.kind == Leg::Kind::kArc);
+    for (const Leg& l : sc.legs)
+      reach +=
+          std::abs(l.distance_m) * (l.kind == Leg::Kind::kStraight || l.kind == Leg::Kind::kArc);
     RoughTerrain::Options o;
     o.rms_height_m = t.rms_height_m;
     o.correlation_length_m = t.correlation_length_m;
@@ -46,11 +50,13 @@ std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario&
 /// how fast the rover is moving relative to its cruise rate (no slip at rest).
 class SlipProcess {
  public:
-  SlipProcess(const SlipSpec& s, double dt, uint64_t seed) : s_(s), dt_(dt), rng_(seed, 101), burst_rng_(seed, 102) {}
+  SlipProcess(const SlipSpec& s, double dt, uint64_t seed)
+      : s_(s), dt_(dt), rng_(seed, 101), burst_rng_(seed, 102) {}
   std::array<double, kNumWheels> step(double progress, double distance_step) {
     const double a = std::exp(-dt_ / s_.correlation_time_s);
     std::array<double, kNumWheels> out{};
-    if (s_.burst_rate_per_m > 0 && burst_rng_.uniform() < s_.burst_rate_per_m * distance_step) burst_left_ = s_.burst_duration_s;
+    if (s_.burst_rate_per_m > 0 && burst_rng_.uniform() < s_.burst_rate_per_m * distance_step)
+      burst_left_ = s_.burst_duration_s;
     const double burst = burst_left_ > 0 ? s_.burst_mps : 0.0;
     burst_left_ -= dt_;
     for (int i = 0; i < kNumWheels; ++i) {
@@ -71,8 +77,9 @@ class SlipProcess {
 };
 
 /// Contact solution at every path sample (rests reuse the previous solution).
-std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeometry& geo, const Terrain& terrain,
-                                    const std::vector<PathSample>& path, SlipProcess& slip) {
+std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeometry& geo,
+                                    const Terrain& terrain, const std::vector<PathSample>& path,
+                                    SlipProcess& slip) {
   const ContactSolver solver(geo, terrain);
   std::vector<TruthSample> truth(path.size());
   ContactState state;
@@ -87,9 +94,11 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
     const auto long_slip = slip.step(p.progress, step);
     std::copy(long_slip.begin(), long_slip.end(), s.slip_longitudinal_mps.begin());
     lateral_offset += slip.lateral(p.progress) * dt * Vec2d(-std::sin(p.yaw), std::cos(p.yaw));
-    const Vec2d body_xy = p.centre + lateral_offset - geo.turn_centre_x * Vec2d(std::cos(p.yaw), std::sin(p.yaw));
-    const bool same = k > 0 && !p.moving && path[k - 1].centre == p.centre && path[k - 1].yaw == p.yaw &&
-                      path[k - 1].steering == p.steering && !path[k - 1].moving;
+    const Vec2d body_xy =
+        p.centre + lateral_offset - geo.turn_centre_x * Vec2d(std::cos(p.yaw), std::sin(p.yaw));
+    const bool same = k > 0 && !p.moving && path[k - 1].centre == p.centre &&
+                      path[k - 1].yaw == p.yaw && path[k - 1].steering == p.steering &&
+                      !path[k - 1].moving;
     if (k == 0) state = solver.initialGuess(body_xy.x(), body_xy.y(), p.yaw);
     if (!same) state = solver.solve(body_xy.x(), body_xy.y(), p.yaw, p.steering, state);
     const Posed pose = ContactSolver::bodyPose(body_xy.x(), body_xy.y(), p.yaw, state);
@@ -106,7 +115,9 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
 /// v, ω, γ̇, λ̇ by central differences; then v̇, ω̇; one-sided at the ends.
 void differentiate(std::vector<TruthSample>& truth) {
   const size_t n = truth.size();
-  auto span = [&](size_t k) { return std::pair<size_t, size_t>{k == 0 ? 0 : k - 1, k + 1 >= n ? n - 1 : k + 1}; };
+  auto span = [&](size_t k) {
+    return std::pair<size_t, size_t>{k == 0 ? 0 : k - 1, k + 1 >= n ? n - 1 : k + 1};
+  };
   for (size_t k = 0; k < n; ++k) {
     const auto [a, b] = span(k);
     if (a == b) continue;
@@ -137,7 +148,8 @@ void driveWheels(std::vector<TruthSample>& truth, const rover::RoverGeometry& ge
     rates.tail<kNumWheels>().setZero();
     for (int i = 0; i < kNumWheels; ++i) {
       const double r = geo.wheels[i].radius;
-      const Vec4d t0 = rover::slipConstraint<double>(kin[i].T_body_wheel, r, rover::wheelJointTwist(kin[i], rates),
+      const Vec4d t0 = rover::slipConstraint<double>(kin[i].T_body_wheel, r,
+                                                     rover::wheelJointTwist(kin[i], rates),
                                                      s.v_body, s.w_body, s.xi[i]);
       s.joint_rates[rover::kPsi1 + i] = (t0[0] - s.slip_longitudinal_mps[i]) / r;
     }
@@ -145,7 +157,8 @@ void driveWheels(std::vector<TruthSample>& truth, const rover::RoverGeometry& ge
       const double h = s.t - truth[k - 1].t;
       s.joints.tail<kNumWheels>() =
           truth[k - 1].joints.tail<kNumWheels>() +
-          0.5 * h * (s.joint_rates.tail<kNumWheels>() + truth[k - 1].joint_rates.tail<kNumWheels>());
+          0.5 * h *
+              (s.joint_rates.tail<kNumWheels>() + truth[k - 1].joint_rates.tail<kNumWheels>());
     }
   }
 }
@@ -155,7 +168,8 @@ void gyroBias(std::vector<TruthSample>& truth, const SensorSpec& s, uint64_t see
   Vec3d b = s.gyro_bias_rad_s;
   for (size_t k = 0; k < truth.size(); ++k) {
     if (k > 0) {
-      const double q = s.gyro_bias_random_walk_rad_s_per_sqrt_s * std::sqrt(truth[k].t - truth[k - 1].t);
+      const double q =
+          s.gyro_bias_random_walk_rad_s_per_sqrt_s * std::sqrt(truth[k].t - truth[k - 1].t);
       b += q * Vec3d(rng.normal(), rng.normal(), rng.normal());
     }
     truth[k].gyro_bias = b;

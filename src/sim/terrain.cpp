@@ -19,8 +19,8 @@ double gauss(double a, double k, double cx, double cy, double x, double y, Vec2d
 }  // namespace
 
 double UndulatingTerrain::height(double x, double y) const {
-  return 0.2 * (gauss(0.25, 5 * 6.25, 0.5, 0.2, x, y, nullptr) - gauss(0.25, 4 * 6.25, 0.5, -0.2, x, y, nullptr) +
-                0.5 * std::sin(0.75 * x * y));
+  return 0.2 * (gauss(0.25, 5 * 6.25, 0.5, 0.2, x, y, nullptr) -
+                gauss(0.25, 4 * 6.25, 0.5, -0.2, x, y, nullptr) + 0.5 * std::sin(0.75 * x * y));
 }
 
 Vec2d UndulatingTerrain::gradient(double x, double y) const {
@@ -53,7 +53,8 @@ double StepTerrain::height(double x, double y) const {
 
 Vec2d StepTerrain::gradient(double x, double y) const {
   double dx, dy0, dy1;
-  const double rx = ramp(x - x0_, w_, &dx), ry0 = ramp(y - y0_, w_, &dy0), ry1 = ramp(y1_ - y, w_, &dy1);
+  const double rx = ramp(x - x0_, w_, &dx), ry0 = ramp(y - y0_, w_, &dy0),
+               ry1 = ramp(y1_ - y, w_, &dy1);
   return h_ * Vec2d(dx * ry0 * ry1, rx * (dy0 * ry1 - ry0 * dy1));
 }
 
@@ -117,13 +118,16 @@ void RoughTerrain::forNearby(double x, double y, F&& f) const {
 
 double RoughTerrain::height(double x, double y) const {
   double h = 0.0;
-  forNearby(x, y, [&](const Bump& b) { h += polyBump(b.amplitude, b.inv_radius_sq, b.x, b.y, x, y, nullptr); });
+  forNearby(x, y, [&](const Bump& b) {
+    h += polyBump(b.amplitude, b.inv_radius_sq, b.x, b.y, x, y, nullptr);
+  });
   return h;
 }
 
 Vec2d RoughTerrain::gradient(double x, double y) const {
   Vec2d g = Vec2d::Zero();
-  forNearby(x, y, [&](const Bump& b) { polyBump(b.amplitude, b.inv_radius_sq, b.x, b.y, x, y, &g); });
+  forNearby(x, y,
+            [&](const Bump& b) { polyBump(b.amplitude, b.inv_radius_sq, b.x, b.y, x, y, &g); });
   return g;
 }
 

@@ -16,7 +16,8 @@
 namespace traverse::testing {
 
 template <int NOut, int NIn, typename F>
-Eigen::Matrix<double, NOut, NIn> autodiffJacobian(const F& f, const Eigen::Matrix<double, NIn, 1>& x) {
+Eigen::Matrix<double, NOut, NIn> autodiffJacobian(const F& f,
+                                                  const Eigen::Matrix<double, NIn, 1>& x) {
   using Jet = ceres::Jet<double, NIn>;
   Eigen::Matrix<Jet, NIn, 1> xj;
   for (int i = 0; i < NIn; ++i) xj[i] = Jet(x[i], i);
@@ -42,13 +43,16 @@ Eigen::Matrix<double, NOut, NIn> numericJacobian(const F& f, const Eigen::Matrix
 /// Expects the Jet Jacobian to match central differences within `tol` (absolute, scaled by
 /// max(1, |J|)) and to be finite.
 template <int NOut, int NIn, typename F>
-void expectJacobianMatchesNumeric(const F& f, const Eigen::Matrix<double, NIn, 1>& x, double tol = 1e-6) {
+void expectJacobianMatchesNumeric(const F& f, const Eigen::Matrix<double, NIn, 1>& x,
+                                  double tol = 1e-6) {
   const auto Ja = autodiffJacobian<NOut, NIn>(f, x);
   const auto Jn = numericJacobian<NOut, NIn>(f, x);
   ASSERT_TRUE(Ja.allFinite()) << "autodiff Jacobian not finite at x = " << x.transpose();
   const double scale = std::max(1.0, Jn.cwiseAbs().maxCoeff());
   EXPECT_LE((Ja - Jn).cwiseAbs().maxCoeff(), tol * scale)
-      << "x = " << x.transpose() << "\nautodiff:\n" << Ja << "\nnumeric:\n" << Jn;
+      << "x = " << x.transpose() << "\nautodiff:\n"
+      << Ja << "\nnumeric:\n"
+      << Jn;
 }
 
 /// A uniformly distributed random unit quaternion (Shoemake's method).

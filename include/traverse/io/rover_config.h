@@ -54,17 +54,17 @@ struct SlipNoiseConfig {
 
 /// Process-model parameters (K-1, K-2, K-8, K-9).
 struct ProcessConfig {
-  double contact_angle_time_constant_s = 2.0;    ///< A_ξ = −1/τ (K-8)
+  double contact_angle_time_constant_s = 2.0;        ///< A_ξ = −1/τ (K-8)
   double contact_angle_noise_rad_per_sqrt_s = 0.15;  ///< n_ξ density
-  double velocity_time_constant_s = 1.0;         ///< A_v = −1/τ (K-1)
-  double velocity_noise_mps2_per_sqrt_hz = 0.05; ///< n_v density
-  double rate_time_constant_s = 1.0;             ///< A_ω = −1/τ (K-2)
-  double rate_noise_rad_s2_per_sqrt_hz = 0.05;   ///< n_ω density
+  double velocity_time_constant_s = 1.0;             ///< A_v = −1/τ (K-1)
+  double velocity_noise_mps2_per_sqrt_hz = 0.05;     ///< n_v density
+  double rate_time_constant_s = 1.0;                 ///< A_ω = −1/τ (K-2)
+  double rate_noise_rad_s2_per_sqrt_hz = 0.05;       ///< n_ω density
 };
 
 struct JointSensorConfig {
-  double angle_noise_rad = 0.001;  ///< potentiometer/encoder 1σ
-  int rate_filter_half_window = 3; ///< see rover/joint_rates.h
+  double angle_noise_rad = 0.001;   ///< potentiometer/encoder 1σ
+  int rate_filter_half_window = 3;  ///< see rover/joint_rates.h
 };
 
 struct RoverConfig {

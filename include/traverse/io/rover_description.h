@@ -12,7 +12,8 @@
 namespace traverse::io {
 
 /// Reads and checks a rover URDF. Errors are InputErrors naming the file and the joint/link.
-rover::RoverGeometry loadRoverGeometry(const std::filesystem::path& urdf_file, const RoverConfig& config);
+rover::RoverGeometry loadRoverGeometry(const std::filesystem::path& urdf_file,
+                                       const RoverConfig& config);
 
 /// Same, from URDF text (`source` names it in error messages).
 rover::RoverGeometry parseRoverGeometry(const std::string& urdf_xml, const RoverConfig& config,

@@ -44,10 +44,10 @@ using JointVectord = JointVector<double>;
 /// (the URDF mimic mechanism expresses the rocker differential: right = −left).
 struct KinematicJoint {
   std::string name;
-  int parent = -1;                  ///< index of the parent joint in RoverGeometry::joints; −1 = body
-  Posed origin;                     ///< parent joint frame → this joint frame at zero angle
-  Vec3d axis = Vec3d::UnitY();      ///< unit rotation axis in this joint's frame; zero if fixed
-  int coord = -1;                   ///< driving coordinate (Coord); −1 for a fixed joint
+  int parent = -1;              ///< index of the parent joint in RoverGeometry::joints; −1 = body
+  Posed origin;                 ///< parent joint frame → this joint frame at zero angle
+  Vec3d axis = Vec3d::UnitY();  ///< unit rotation axis in this joint's frame; zero if fixed
+  int coord = -1;               ///< driving coordinate (Coord); −1 for a fixed joint
   double multiplier = 1.0;
   double offset = 0.0;
 };

@@ -44,9 +44,8 @@ Eigen::Matrix<T, kSlipRows * kNumWheels, 1> slipConstraintAll(
     const Vec3<T>& w_body, const Eigen::Matrix<T, kNumWheels, 1>& xi) {
   Eigen::Matrix<T, kSlipRows * kNumWheels, 1> t;
   for (int i = 0; i < kNumWheels; ++i) {
-    t.template segment<kSlipRows>(kSlipRows * i) =
-        slipConstraint(kin[i].T_body_wheel, geometry.wheels[i].radius, joint_twists[i], v_body,
-                       w_body, xi[i]);
+    t.template segment<kSlipRows>(kSlipRows * i) = slipConstraint(
+        kin[i].T_body_wheel, geometry.wheels[i].radius, joint_twists[i], v_body, w_body, xi[i]);
   }
   return t;
 }

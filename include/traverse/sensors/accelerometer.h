@@ -30,9 +30,9 @@ Vec3<T> accelAtRest(const Quat<T>& q_site_body, double gravity) {
 
 /// Sensor-integrating velocity model (K-11, O-4): v̇ = a_m − (ω × v − Rᵀ g_s + ω×(ω×L) + ω̇×L).
 template <typename T>
-Vec3<T> velocityRateFromAccel(const Vec3<T>& a_meas, const Quat<T>& q_site_body, const Vec3<T>& v_body,
-                              const Vec3<T>& w_body, const Vec3<T>& w_dot_body, const Vec3d& lever_arm,
-                              double gravity) {
+Vec3<T> velocityRateFromAccel(const Vec3<T>& a_meas, const Quat<T>& q_site_body,
+                              const Vec3<T>& v_body, const Vec3<T>& w_body,
+                              const Vec3<T>& w_dot_body, const Vec3d& lever_arm, double gravity) {
   return a_meas - accelPredict(q_site_body, Vec3<T>::Zero().eval(), v_body, w_body, w_dot_body,
                                lever_arm, gravity);
 }

@@ -36,6 +36,7 @@ struct RollPitchMeasurement {
 /// Roll/pitch from the mean specific force of a rest window and the covariance of that mean
 /// (first-order propagation through the atan2 map; for N samples of white noise σ the mean's
 /// covariance is σ²/N · I).
-RollPitchMeasurement rollPitchAtRest(const Vec3d& mean_specific_force, const Mat3d& mean_covariance);
+RollPitchMeasurement rollPitchAtRest(const Vec3d& mean_specific_force,
+                                     const Mat3d& mean_covariance);
 
 }  // namespace traverse::sensors

@@ -23,7 +23,8 @@ struct SunSensorGeometry {
 
 /// Sun unit vector in the sensor frame (K-16's R(q)ᵀ s_v, plus the mounting rotation).
 template <typename T>
-Vec3<T> sunInSensor(const Quat<T>& q_site_body, const SunSensorGeometry& geo, const Vec3d& sun_site) {
+Vec3<T> sunInSensor(const Quat<T>& q_site_body, const SunSensorGeometry& geo,
+                    const Vec3d& sun_site) {
   const Vec3<T> in_body = q_site_body.conjugate() * sun_site.cast<T>();
   return geo.R_body_sensor.transpose().cast<T>() * in_body;
 }
@@ -47,18 +48,21 @@ Vec2<T> fisheyeProject(const Vec3<T>& s_sensor) {
 
 /// Predicted reading (s1, s2) for attitude q (K-15, K-16).
 template <typename T>
-Vec2<T> sunSensorPredict(const Quat<T>& q_site_body, const SunSensorGeometry& geo, const Vec3d& sun_site) {
+Vec2<T> sunSensorPredict(const Quat<T>& q_site_body, const SunSensorGeometry& geo,
+                         const Vec3d& sun_site) {
   return fisheyeProject(sunInSensor(q_site_body, geo, sun_site));
 }
 
 /// Angle between the sun and the sensor boresight (rad).
-inline double sunOffBoresight(const Quatd& q_site_body, const SunSensorGeometry& geo, const Vec3d& sun_site) {
+inline double sunOffBoresight(const Quatd& q_site_body, const SunSensorGeometry& geo,
+                              const Vec3d& sun_site) {
   const Vec3d s = sunInSensor(q_site_body, geo, sun_site).normalized();
   return std::atan2(std::hypot(s.x(), s.y()), s.z());
 }
 
 /// True when the sun is inside the field of view (reading usable).
-inline bool sunInFieldOfView(const Quatd& q_site_body, const SunSensorGeometry& geo, const Vec3d& sun_site) {
+inline bool sunInFieldOfView(const Quatd& q_site_body, const SunSensorGeometry& geo,
+                             const Vec3d& sun_site) {
   return sunOffBoresight(q_site_body, geo, sun_site) <= geo.half_fov_rad;
 }
 

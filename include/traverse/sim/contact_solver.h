@@ -17,16 +17,16 @@
 namespace traverse::sim {
 
 struct ContactState {
-  double z = 0.0, roll = 0.0, pitch = 0.0;  ///< body origin height (site), Z-Y-X angles (rad)
-  Vec3d gamma = Vec3d::Zero();              ///< γ0, γ1, γ2
+  double z = 0.0, roll = 0.0, pitch = 0.0;     ///< body origin height (site), Z-Y-X angles (rad)
+  Vec3d gamma = Vec3d::Zero();                 ///< γ0, γ1, γ2
   std::array<double, rover::kNumWheels> xi{};  ///< contact angles (rad)
 };
 
 struct ContactSolverOptions {
-  double tolerance_m = 1e-9;   ///< |gap| of every wheel at convergence
+  double tolerance_m = 1e-9;  ///< |gap| of every wheel at convergence
   int max_iterations = 40;
   double max_joint_angle_rad = 1.2;  ///< beyond this the suspension has no physical solution
-  int rim_scan_points = 61;    ///< global check of each wheel's lowest rim point
+  int rim_scan_points = 61;          ///< global check of each wheel's lowest rim point
 };
 
 /// Where a wheel touches: the gap between rim and terrain along the vertical, and the angle
@@ -45,17 +45,20 @@ class ContactError : public std::runtime_error {
 
 class ContactSolver {
  public:
-  ContactSolver(const rover::RoverGeometry& geometry, const Terrain& terrain, ContactSolverOptions options = {});
+  ContactSolver(const rover::RoverGeometry& geometry, const Terrain& terrain,
+                ContactSolverOptions options = {});
 
   /// Solves at (x, y, yaw) with the given steering angles, starting from `guess` (use
   /// initialGuess() for the first point of a path). Throws ContactError naming the pose.
-  ContactState solve(double x, double y, double yaw, const Vec2d& steering, const ContactState& guess) const;
+  ContactState solve(double x, double y, double yaw, const Vec2d& steering,
+                     const ContactState& guess) const;
 
   /// A starting point from the terrain under the body: level with the local surface normal.
   ContactState initialGuess(double x, double y, double yaw) const;
 
   /// Checks a solved state (for tests and for the simulator's own assertions).
-  std::array<WheelContactCheck, rover::kNumWheels> check(double x, double y, double yaw, const Vec2d& steering,
+  std::array<WheelContactCheck, rover::kNumWheels> check(double x, double y, double yaw,
+                                                         const Vec2d& steering,
                                                          const ContactState& state) const;
 
   /// Site pose of the body for a state.
@@ -66,7 +69,8 @@ class ContactSolver {
     Vec3d centre, x_axis, z_axis;
     double radius;
   };
-  std::array<Rim, rover::kNumWheels> rims(const Posed& T_site_body, const rover::JointVectord& q) const;
+  std::array<Rim, rover::kNumWheels> rims(const Posed& T_site_body,
+                                          const rover::JointVectord& q) const;
   double gap(const Rim& rim, double xi) const;
   double gapSlope(const Rim& rim, double xi) const;
   double lowestRimPoint(const Rim& rim, double xi_start) const;

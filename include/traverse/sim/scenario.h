@@ -14,22 +14,22 @@ namespace traverse::sim {
 struct Leg {
   enum class Kind { kRest, kStraight, kArc, kTurnInPlace };
   Kind kind = Kind::kRest;
-  double duration_s = 10.0;    ///< rest
-  double distance_m = 1.0;     ///< straight, arc (path length of the turn centre point)
-  double radius_m = 2.0;       ///< arc: turn radius of the turn-centre point, + = left
-  double angle_rad = 0.0;      ///< turn in place: + = counter-clockwise
-  double speed_mps = 0.05;     ///< cruise speed (straight, arc)
-  double rate_rad_s = 0.1;     ///< cruise yaw rate (turn in place)
-  double ramp_s = 2.0;         ///< quintic speed ramps at start and end
-  double steer_s = 1.0;        ///< time to steer the front wheels before moving (if they must)
+  double duration_s = 10.0;  ///< rest
+  double distance_m = 1.0;   ///< straight, arc (path length of the turn centre point)
+  double radius_m = 2.0;     ///< arc: turn radius of the turn-centre point, + = left
+  double angle_rad = 0.0;    ///< turn in place: + = counter-clockwise
+  double speed_mps = 0.05;   ///< cruise speed (straight, arc)
+  double rate_rad_s = 0.1;   ///< cruise yaw rate (turn in place)
+  double ramp_s = 2.0;       ///< quintic speed ramps at start and end
+  double steer_s = 1.0;      ///< time to steer the front wheels before moving (if they must)
 };
 
 struct TerrainSpec {
-  std::string type = "flat";  ///< flat | plane | undulating | step | rough
-  double slope_rad = 0.1, direction_rad = 0.0;                        ///< plane
-  double step_height_m = 0.06, step_x_m = 0.5, step_y_min_m = -1.0,   ///< step (brick, K §4.2)
+  std::string type = "flat";                    ///< flat | plane | undulating | step | rough
+  double slope_rad = 0.1, direction_rad = 0.0;  ///< plane
+  double step_height_m = 0.06, step_x_m = 0.5, step_y_min_m = -1.0,  ///< step (brick, K §4.2)
       step_y_max_m = 0.0, step_ramp_m = 0.15;
-  double rms_height_m = 0.02, correlation_length_m = 0.5;             ///< rough
+  double rms_height_m = 0.02, correlation_length_m = 0.5;  ///< rough
   double bumps_per_m2 = 2.0;
   double base_slope_rad = 0.0;  ///< rough: on top of a plane rising along +x
 };
@@ -37,11 +37,11 @@ struct TerrainSpec {
 struct SlipSpec {
   double longitudinal_white_mps = 0.0;       ///< per wheel, white, scaled by |speed|/cruise
   double longitudinal_correlated_mps = 0.0;  ///< per wheel, first-order Gauss–Markov
-  double lateral_correlated_mps = 0.0;       ///< body transverse slip (moves the rover off its path)
+  double lateral_correlated_mps = 0.0;  ///< body transverse slip (moves the rover off its path)
   double correlation_time_s = 5.0;
-  double burst_rate_per_m = 0.0;             ///< slip bursts per metre driven (all wheels)
+  double burst_rate_per_m = 0.0;  ///< slip bursts per metre driven (all wheels)
   double burst_duration_s = 2.0;
-  double burst_mps = 0.02;                   ///< longitudinal slip during a burst
+  double burst_mps = 0.02;  ///< longitudinal slip during a burst
 };
 
 struct SensorSpec {
@@ -71,11 +71,11 @@ struct SensorSpec {
 
 struct Scenario {
   std::string name;
-  std::string rover = "rocky7";  ///< datasets/rovers/<rover>/ or a directory path
-  double truth_rate_hz = 200.0;  ///< internal simulation rate (≥ 200 Hz)
-  double truth_output_hz = 20.0; ///< rate of truth.csv
+  std::string rover = "rocky7";   ///< datasets/rovers/<rover>/ or a directory path
+  double truth_rate_hz = 200.0;   ///< internal simulation rate (≥ 200 Hz)
+  double truth_output_hz = 20.0;  ///< rate of truth.csv
   double gravity_mps2 = 9.80665;
-  Vec3d start = Vec3d::Zero();   ///< x, y (m) of the turn-centre point, yaw (rad)
+  Vec3d start = Vec3d::Zero();  ///< x, y (m) of the turn-centre point, yaw (rad)
   std::vector<Leg> legs;
   TerrainSpec terrain;
   SlipSpec slip;

@@ -17,11 +17,11 @@ namespace traverse::sim {
 /// Ground truth at one internal time step.
 struct TruthSample {
   double t = 0.0;
-  Vec3d p_site = Vec3d::Zero();           ///< body origin
+  Vec3d p_site = Vec3d::Zero();  ///< body origin
   Quatd q_site_body = Quatd::Identity();
   Vec3d v_body = Vec3d::Zero(), w_body = Vec3d::Zero();
   Vec3d a_body = Vec3d::Zero(), w_dot_body = Vec3d::Zero();  ///< body-frame derivatives of v, ω
-  rover::JointVectord joints = rover::JointVectord::Zero();   ///< γ, λ, ψ
+  rover::JointVectord joints = rover::JointVectord::Zero();  ///< γ, λ, ψ
   rover::JointVectord joint_rates = rover::JointVectord::Zero();
   std::array<double, rover::kNumWheels> xi{};
   std::array<double, rover::kNumWheels> slip_longitudinal_mps{};  ///< injected, per wheel
@@ -37,7 +37,8 @@ struct Simulation {
 
 /// Runs a scenario. `rover_dir` holds rover.urdf and rover.yaml; the log's rover.yaml is that
 /// file with the scenario's sensor set-up and noise written in. Same seed → same numbers.
-Simulation simulate(const Scenario& scenario, const std::filesystem::path& rover_dir, uint64_t seed);
+Simulation simulate(const Scenario& scenario, const std::filesystem::path& rover_dir,
+                    uint64_t seed);
 
 /// The reference path alone (turn-centre point, heading, steering, commanded rates) sampled at
 /// the internal rate; used by simulate() and by tests.
@@ -46,9 +47,9 @@ struct PathSample {
   Vec2d centre = Vec2d::Zero();  ///< turn-centre point, site x, y
   double yaw = 0.0;
   Vec2d steering = Vec2d::Zero();
-  double speed_mps = 0.0;        ///< commanded speed of the turn-centre point
-  double yaw_rate_rad_s = 0.0;   ///< commanded yaw rate
-  double progress = 0.0;         ///< |speed| / cruise in [0, 1] (0 at rest)
+  double speed_mps = 0.0;       ///< commanded speed of the turn-centre point
+  double yaw_rate_rad_s = 0.0;  ///< commanded yaw rate
+  double progress = 0.0;        ///< |speed| / cruise in [0, 1] (0 at rest)
   bool moving = false;
 };
 std::vector<PathSample> samplePath(const Scenario& scenario, const rover::RoverGeometry& geometry);

@@ -100,7 +100,8 @@ class RoughTerrain final : public Terrain {
 /// Sum of terrains (e.g. rough terrain on a slope).
 class SumTerrain final : public Terrain {
  public:
-  explicit SumTerrain(std::vector<std::shared_ptr<const Terrain>> parts) : parts_(std::move(parts)) {}
+  explicit SumTerrain(std::vector<std::shared_ptr<const Terrain>> parts)
+      : parts_(std::move(parts)) {}
   double height(double x, double y) const override;
   Vec2d gradient(double x, double y) const override;
 

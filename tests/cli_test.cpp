@@ -1,0 +1,104 @@
+// The `traverse` command end to end: exit codes and the one-line error contract.
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "support/jacobian_check.h"
+
+namespace traverse {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+struct Result {
+  int code;
+  std::string out, err;
+};
+
+Result run(const std::string& args) {
+  // Unique files per call: ctest runs tests in parallel processes.
+  static int calls = 0;
+  const std::string tag =
+      std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+      std::to_string(++calls);
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string out = (dir / ("traverse_cli_" + tag + ".out")).string();
+  const std::string err = (dir / ("traverse_cli_" + tag + ".err")).string();
+  const std::string cmd = std::string(TRAVERSE_CLI_PATH) + " " + args + " >" + out + " 2>" + err;
+  const int status = std::system(cmd.c_str());
+  auto slurp = [](const std::string& p) {
+    std::ifstream f(p);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  };
+  Result r{WEXITSTATUS(status), slurp(out), slurp(err)};
+  std::filesystem::remove(out);
+  std::filesystem::remove(err);
+  return r;
+}
+
+std::string bundled(const std::string& name) {
+  return testing::sourceDir() + "/datasets/logs/" + name;
+}
+
+TEST(Cli, InfoOnBundledLogSucceeds) {
+  const Result r = run("info " + bundled("multi-stop"));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("joints"));
+  EXPECT_THAT(r.out, HasSubstr("rocky7"));
+  EXPECT_EQ(r.err, "");
+}
+
+TEST(Cli, BadLogGivesOneLineAndExitTwo) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_bad";
+  std::filesystem::remove_all(dir);
+  std::filesystem::copy(bundled("straight-1m"), dir);
+  {
+    std::ofstream f(dir / "sun.csv");
+    f << "t,s1,s2,valid\n0,0.1,0.2,1\n0.5,1.7,0.2,1\n";
+  }
+  const Result r = run("info " + dir.string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, StartsWith((dir / "sun.csv").string() + ":3: "));
+  EXPECT_THAT(r.err, HasSubstr("s1"));
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  const Result skipped = run("info --skip-bad-rows " + dir.string());
+  EXPECT_EQ(skipped.code, 0);
+  EXPECT_THAT(skipped.err, HasSubstr("sun.csv: skipped 1 bad row"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Cli, UsageErrorsExitTwo) {
+  EXPECT_EQ(run("").code, 2);
+  EXPECT_EQ(run("info").code, 2);
+  EXPECT_EQ(run("no-such-command").code, 2);
+  EXPECT_EQ(run("simulate no-such-scenario -o /tmp/x").code, 2);
+  EXPECT_EQ(run("info /no/such/dir").code, 2);
+}
+
+TEST(Cli, HelpAndVersionExitZero) {
+  for (const char* args : {"--help", "info --help", "simulate --help", "--version"}) {
+    const Result r = run(args);
+    EXPECT_EQ(r.code, 0) << args;
+    EXPECT_FALSE(r.out.empty()) << args;
+  }
+}
+
+TEST(Cli, SimulateWritesALogThatReadsBack) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_sim";
+  std::filesystem::remove_all(dir);
+  const Result r =
+      run("simulate obstacle -o " + dir.string() + " --seed 3 --set path.1.straight=0.2 --quiet");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(run("info " + dir.string()).code, 0);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace traverse
