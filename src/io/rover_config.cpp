@@ -1,5 +1,6 @@
 // rover.yaml reading and writing (yaml-cpp). Strict: unknown keys, wrong types and values out
 // of range are InputErrors naming the file, the line and the dotted key.
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -169,11 +170,19 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   return c;
 }
 
+namespace {
+/// Shortest text that reads back to the same double (std::to_chars), as a plain YAML scalar.
+std::string num(double v) {
+  char buf[32];
+  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, res.ptr);
+}
+}  // namespace
+
 void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& c) {
   YAML::Emitter out;
-  out.SetDoublePrecision(17);
   auto vec = [&](const Vec3d& v) {
-    out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq;
+    out << YAML::Flow << YAML::BeginSeq << num(v.x()) << num(v.y()) << num(v.z()) << YAML::EndSeq;
   };
   out << YAML::BeginMap;
   out << YAML::Key << "format" << YAML::Value << c.format;
@@ -184,23 +193,24 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
     for (const auto& [k, v] : c.joint_names) out << YAML::Key << k << YAML::Value << v;
     out << YAML::EndMap;
   }
-  if (c.turn_centre_x_m) out << YAML::Key << "turn_centre_x_m" << YAML::Value << *c.turn_centre_x_m;
-  out << YAML::Key << "gravity_mps2" << YAML::Value << c.gravity_mps2;
+  if (c.turn_centre_x_m)
+    out << YAML::Key << "turn_centre_x_m" << YAML::Value << num(*c.turn_centre_x_m);
+  out << YAML::Key << "gravity_mps2" << YAML::Value << num(c.gravity_mps2);
   out << YAML::Key << "gyro" << YAML::Value << YAML::BeginMap << YAML::Key << "axes" << YAML::Value
       << (c.gyro.axes == GyroAxes::kThreeAxis ? "xyz" : "z") << YAML::Key << "noise_rad_s"
-      << YAML::Value << c.gyro.noise_rad_s << YAML::Key << "bias_random_walk_rad_s_per_sqrt_s"
-      << YAML::Value << c.gyro.bias_random_walk_rad_s_per_sqrt_s << YAML::Key
-      << "initial_bias_sigma_rad_s" << YAML::Value << c.gyro.initial_bias_sigma_rad_s
+      << YAML::Value << num(c.gyro.noise_rad_s) << YAML::Key << "bias_random_walk_rad_s_per_sqrt_s"
+      << YAML::Value << num(c.gyro.bias_random_walk_rad_s_per_sqrt_s) << YAML::Key
+      << "initial_bias_sigma_rad_s" << YAML::Value << num(c.gyro.initial_bias_sigma_rad_s)
       << YAML::EndMap;
   out << YAML::Key << "sun_sensor" << YAML::Value << YAML::BeginMap << YAML::Key
       << "mounting_rpy_rad" << YAML::Value;
   vec(so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));
-  out << YAML::Key << "field_of_view_rad" << YAML::Value << c.sun_sensor.field_of_view_rad
-      << YAML::Key << "noise" << YAML::Value << c.sun_sensor.noise << YAML::EndMap;
+  out << YAML::Key << "field_of_view_rad" << YAML::Value << num(c.sun_sensor.field_of_view_rad)
+      << YAML::Key << "noise" << YAML::Value << num(c.sun_sensor.noise) << YAML::EndMap;
   out << YAML::Key << "accelerometer" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm_m"
       << YAML::Value;
   vec(c.accel.lever_arm_m);
-  out << YAML::Key << "noise_mps2" << YAML::Value << c.accel.noise_mps2 << YAML::EndMap;
+  out << YAML::Key << "noise_mps2" << YAML::Value << num(c.accel.noise_mps2) << YAML::EndMap;
   out << YAML::Key << "sun" << YAML::Value << YAML::BeginMap << YAML::Key << "direction_site"
       << YAML::Value;
   vec(c.sun.direction_site);
@@ -212,20 +222,22 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   out << YAML::EndMap;
   const auto& s = c.slip_noise;
   out << YAML::Key << "slip_noise" << YAML::Value << YAML::BeginMap << YAML::Key
-      << "longitudinal_mps" << YAML::Value << s.longitudinal_mps << YAML::Key << "lateral_mps"
-      << YAML::Value << s.lateral_mps << YAML::Key << "normal_mps" << YAML::Value << s.normal_mps
-      << YAML::Key << "spin_rad_s" << YAML::Value << s.spin_rad_s << YAML::EndMap;
+      << "longitudinal_mps" << YAML::Value << num(s.longitudinal_mps) << YAML::Key << "lateral_mps"
+      << YAML::Value << num(s.lateral_mps) << YAML::Key << "normal_mps" << YAML::Value
+      << num(s.normal_mps) << YAML::Key << "spin_rad_s" << YAML::Value << num(s.spin_rad_s)
+      << YAML::EndMap;
   const auto& p = c.process;
   out << YAML::Key << "process" << YAML::Value << YAML::BeginMap << YAML::Key
-      << "contact_angle_time_constant_s" << YAML::Value << p.contact_angle_time_constant_s
+      << "contact_angle_time_constant_s" << YAML::Value << num(p.contact_angle_time_constant_s)
       << YAML::Key << "contact_angle_noise_rad_per_sqrt_s" << YAML::Value
-      << p.contact_angle_noise_rad_per_sqrt_s << YAML::Key << "velocity_time_constant_s"
-      << YAML::Value << p.velocity_time_constant_s << YAML::Key << "velocity_noise_mps2_per_sqrt_hz"
-      << YAML::Value << p.velocity_noise_mps2_per_sqrt_hz << YAML::Key << "rate_time_constant_s"
-      << YAML::Value << p.rate_time_constant_s << YAML::Key << "rate_noise_rad_s2_per_sqrt_hz"
-      << YAML::Value << p.rate_noise_rad_s2_per_sqrt_hz << YAML::EndMap;
+      << num(p.contact_angle_noise_rad_per_sqrt_s) << YAML::Key << "velocity_time_constant_s"
+      << YAML::Value << num(p.velocity_time_constant_s) << YAML::Key
+      << "velocity_noise_mps2_per_sqrt_hz" << YAML::Value << num(p.velocity_noise_mps2_per_sqrt_hz)
+      << YAML::Key << "rate_time_constant_s" << YAML::Value << num(p.rate_time_constant_s)
+      << YAML::Key << "rate_noise_rad_s2_per_sqrt_hz" << YAML::Value
+      << num(p.rate_noise_rad_s2_per_sqrt_hz) << YAML::EndMap;
   out << YAML::Key << "joint_sensors" << YAML::Value << YAML::BeginMap << YAML::Key
-      << "angle_noise_rad" << YAML::Value << c.joints.angle_noise_rad << YAML::Key
+      << "angle_noise_rad" << YAML::Value << num(c.joints.angle_noise_rad) << YAML::Key
       << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window
       << YAML::EndMap;
   out << YAML::EndMap;
