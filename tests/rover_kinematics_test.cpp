@@ -208,7 +208,7 @@ TEST(SlipConstraint, TurnInPlaceGivesNominalSpinAndBogieSlip) {
     const double x = kin[i].T_body_wheel.p.x();
     const Vec4d expected(0, front ? 0.0 : wz * (x - xc), 0, wz);
     EXPECT_LT((t - expected).norm(), 1e-14) << "wheel " << i + 1 << ": " << t.transpose();
-    EXPECT_LT((nominalSlip(kin[i], 0.065, V, jt) - expected).norm(), 1e-14);
+    EXPECT_LT((nominalSlip(kin[i].T_body_wheel, 0.065, V, jt) - expected).norm(), 1e-14);
   }
 }
 

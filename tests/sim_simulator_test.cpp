@@ -85,7 +85,7 @@ SlipStats slipOnTruth(const Simulation& sim, bool true_twist = false) {
       const double r = rocky7().wheels[i].radius;
       const Vec4d t =
           rover::slipConstraint<double>(kin[i].T_body_wheel, r, jt, s.v_body, s.w_body, s.xi[i]);
-      const Vec4d d = t - rover::nominalSlip(kin[i], r, nominal, jt);
+      const Vec4d d = t - rover::nominalSlip(kin[i].T_body_wheel, r, nominal, jt);
       st.max_abs = st.max_abs.cwiseMax(d.cwiseAbs());
       st.rms += d.cwiseAbs2();
       ++n;

@@ -20,5 +20,7 @@ std::filesystem::path datasetsDir();
 
 Command addInfoCommand(CLI::App& app, const GlobalOptions& global);
 Command addSimulateCommand(CLI::App& app, const GlobalOptions& global);
+Command addFilterCommand(CLI::App& app, const GlobalOptions& global);
+Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace traverse::app

@@ -29,8 +29,9 @@ int main(int argc, char** argv) {
   app::GlobalOptions global;
   app.add_flag("-q,--quiet", global.quiet, "Print nothing but errors");
   app.fallthrough();  // global flags (--quiet) also after the subcommand
-  std::vector<app::Command> commands = {app::addInfoCommand(app, global),
-                                        app::addSimulateCommand(app, global)};
+  std::vector<app::Command> commands = {
+      app::addInfoCommand(app, global), app::addEvaluateCommand(app, global),
+      app::addSimulateCommand(app, global), app::addFilterCommand(app, global)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

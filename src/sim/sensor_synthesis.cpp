@@ -41,6 +41,14 @@ Vec3d sunAt(const SensorSpec& s, double t) {
   return Eigen::AngleAxisd(s.sun_azimuth_rate_rad_s * t, Vec3d::UnitZ()) * s.sun_direction;
 }
 
+double maxSpeed(const Scenario& sc) {
+  double v = 0.0;
+  for (const Leg& l : sc.legs) {
+    if (l.kind == Leg::Kind::kStraight || l.kind == Leg::Kind::kArc) v = std::max(v, l.speed_mps);
+  }
+  return v;
+}
+
 void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
   const SensorSpec& s = sc.sensors;
   c.gravity_mps2 = sc.gravity_mps2;
@@ -58,6 +66,21 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
       c.sun.azimuth_elevation.emplace_back(t, std::atan2(d.y(), d.x()), std::asin(d.z()));
     }
   }
+  // Slip noise that says what was injected. A filter assuming white slip sees correlated slip as
+  // signal, so a correlated component σ with correlation time τ is stated as the white noise of
+  // equal low-frequency power at the joint rate f: σ_w² = 2 σ² τ f. The rover's own values stay
+  // as the floor (thin-wheel and terrain-curvature model error).
+  const SlipSpec& sl = sc.slip;
+  const double f = s.joints_rate_hz, tau = sl.correlation_time_s;
+  const double burst_fraction = sl.burst_rate_per_m * maxSpeed(sc) * sl.burst_duration_s;
+  const double long2 =
+      sl.longitudinal_white_mps * sl.longitudinal_white_mps +
+      2 * tau * f * sl.longitudinal_correlated_mps * sl.longitudinal_correlated_mps +
+      2 * sl.burst_duration_s * f * burst_fraction * sl.burst_mps * sl.burst_mps;
+  const double lat2 = 2 * tau * f * sl.lateral_correlated_mps * sl.lateral_correlated_mps;
+  c.slip_noise.longitudinal_mps =
+      std::sqrt(c.slip_noise.longitudinal_mps * c.slip_noise.longitudinal_mps + long2);
+  c.slip_noise.lateral_mps = std::sqrt(c.slip_noise.lateral_mps * c.slip_noise.lateral_mps + lat2);
   c.accel.lever_arm_m = s.accel_lever_arm_m;
   c.accel.noise_mps2 = s.accel_noise_mps2;
   c.joints.angle_noise_rad =

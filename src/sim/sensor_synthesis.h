@@ -15,7 +15,4 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
                               const std::filesystem::path& rover_dir,
                               const std::vector<TruthSample>& truth, uint64_t seed);
 
-/// Truth interpolated at time t (linear; slerp for attitude).
-TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t);
-
 }  // namespace traverse::sim

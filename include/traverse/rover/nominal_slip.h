@@ -24,11 +24,11 @@ inline Twistd nominalBodyTwist(const RoverGeometry& geometry, double v_x, double
 /// twist, keeping what rolling cannot absorb — the transverse slip (row 1) and the spin about
 /// the normal (row 3) — and zero longitudinal and normal slip (the wheel rolls and stays on
 /// the ground). `joint_twist` carries the steering rate's contribution to the spin.
-inline Vec4d nominalSlip(const WheelKinematics& wk, double radius, const Twistd& body_twist,
+inline Vec4d nominalSlip(const Posed& T_body_wheel, double radius, const Twistd& body_twist,
                          const Twistd& joint_twist) {
   const Vec3d v = body_twist.head<3>();
   const Vec3d w = body_twist.tail<3>();
-  Vec4d t = slipConstraint<double>(wk.T_body_wheel, radius, joint_twist, v, w, 0.0);
+  Vec4d t = slipConstraint<double>(T_body_wheel, radius, joint_twist, v, w, 0.0);
   t[0] = 0.0;
   t[2] = 0.0;
   return t;

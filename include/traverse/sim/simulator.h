@@ -40,6 +40,9 @@ struct Simulation {
 Simulation simulate(const Scenario& scenario, const std::filesystem::path& rover_dir,
                     uint64_t seed);
 
+/// Truth interpolated at time t (linear; slerp for attitude; clamped at the ends).
+TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t);
+
 /// The reference path alone (turn-centre point, heading, steering, commanded rates) sampled at
 /// the internal rate; used by simulate() and by tests.
 struct PathSample {

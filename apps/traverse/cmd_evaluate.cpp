@@ -1,0 +1,73 @@
+// `traverse evaluate OUTDIR --truth LOGDIR`: metrics of whatever trajectories OUTDIR holds
+// (dr.csv, ekf.csv, smoothed.csv) against LOGDIR/truth.csv; writes OUTDIR/metrics.json.
+#include <iostream>
+#include <memory>
+
+#include "commands.h"
+#include "traverse/core/error.h"
+#include "traverse/eval/metrics.h"
+#include "traverse/io/csv.h"
+
+namespace traverse::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The trajectories present in `dir`, in the order dr, ekf, smoothed.
+std::vector<est::Trajectory> readTrajectories(const fs::path& dir) {
+  std::vector<est::Trajectory> out;
+  for (const char* name : {"dr", "ekf", "smoothed"}) {
+    const fs::path file = dir / (std::string(name) + ".csv");
+    if (!fs::exists(file)) continue;
+    try {
+      out.push_back(est::readTrajectory(dir, name));
+    } catch (const std::invalid_argument& e) {
+      // A header that is not the trajectory layout is bad input (exit 2), not an internal error.
+      throw InputError(file.string(), 1, e.what());
+    }
+  }
+  return out;
+}
+
+/// The log's name for metrics.json: the directory's own name, also for "." or a trailing '/'.
+std::string logName(const fs::path& dir) {
+  const fs::path canonical = fs::weakly_canonical(dir);
+  return canonical.has_filename() ? canonical.filename().string() : canonical.string();
+}
+
+}  // namespace
+
+Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
+  struct Options {
+    std::string out_dir, log_dir;
+  };
+  auto opt = std::make_shared<Options>();
+  CLI::App* cmd = app.add_subcommand(
+      "evaluate", "Compare the trajectories in OUTDIR with a log's truth; write metrics.json");
+  cmd->add_option("OUTDIR", opt->out_dir, "Output directory holding dr.csv, ekf.csv, smoothed.csv")
+      ->required();
+  cmd->add_option("--truth", opt->log_dir, "Log directory holding truth.csv")->required();
+  return [cmd, opt, &global]() {
+    if (!*cmd) return -1;
+    const fs::path out_dir(opt->out_dir), truth_file = fs::path(opt->log_dir) / "truth.csv";
+    if (!fs::is_directory(out_dir)) throw InputError(opt->out_dir, 0, "not a directory");
+    if (!fs::exists(truth_file)) {
+      throw InputError(truth_file.string(), 0, "missing: no truth to evaluate against");
+    }
+    const std::vector<est::Trajectory> trajectories = readTrajectories(out_dir);
+    if (trajectories.empty()) {
+      throw InputError(opt->out_dir, 0,
+                       "no trajectory to evaluate (dr.csv, ekf.csv, smoothed.csv)");
+    }
+    const eval::TruthTrajectory truth(io::readCsv(truth_file, io::logStreamSpec("truth.csv")));
+    const eval::MetricsReport report =
+        eval::evaluateAll(logName(opt->log_dir), trajectories, truth);
+    const fs::path json = out_dir / "metrics.json";
+    eval::writeMetricsJson(json, report);
+    if (!global.quiet)
+      std::cout << eval::formatMetricsTable(report) << "wrote " << json.string() << "\n";
+    return 0;
+  };
+}
+
+}  // namespace traverse::app

@@ -1,0 +1,28 @@
+// Shared by filter, smooth and run: options, reading the log, running the estimators, writing
+// OUTDIR (outputs.md).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "traverse/estimators/pipeline.h"
+
+namespace traverse::app {
+
+struct PipelineOptions {
+  std::string log_dir, out_dir;
+  bool skip_bad_rows = false;
+  std::vector<double> initial_position{0.0, 0.0, 0.0};
+  std::string attitude_model = "gyro-driven";
+  std::string velocity_model = "perturbation";
+  bool no_sun = false, no_slip = false, no_gating = false, pitch_projection = false;
+};
+
+void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);
+est::PipelineConfig pipelineConfig(const PipelineOptions& options);
+/// Reads the log, estimates, writes OUTDIR; returns what it estimated.
+est::Estimates runPipeline(const PipelineOptions& options, const GlobalOptions& global,
+                           bool smooth);
+
+}  // namespace traverse::app

@@ -1,0 +1,152 @@
+// Forward error-state EKF on the kinematic rover model (K §2.2, §3; O-1 … O-4; R-16 … R-21).
+//
+// Nominal state: attitude q (body → site), rate perturbation ω_p, position x (site), velocity
+// perturbation v_p (body), contact angles ξ1..ξ6, gyro bias b. Error state (21):
+//   [δθ (body small angle, q = q̂ ⊗ Exp(δθ)), δω_p, δx, δv_p, δξ, δb].
+// Process (continuous-discrete): K-1 ẋ = R(q)(v_c + v_p), v̇_p = A_v v_p + n_v; K-2/K-7 attitude
+// with ω = ω_c + ω_p (gyro as a measurement, K-12) or the hybrid O-1 form ω = B_gᵀ(ω_m − b) +
+// ω_p on the measured axes (default; the gyro drives the heading); K-8 ξ̇ = A_ξ ξ + n_ξ;
+// K-9 ḃ = n_b; or O-4, the accelerometer driving the velocity. Updates are processed
+// sequentially as each stream's samples arrive (R §5): slip constraint (K-17, four rows per
+// wheel), sun sensor (K-15/16), gyro (K-12, when a measurement), and at rest zero velocity, zero
+// rate, the bias (each gyro sample: Nickels' drift filter) and roll/pitch from gravity. Joseph-form
+// covariance updates; the attitude error is re-absorbed into q after every update (K-21), with the
+// reset Jacobian applied to the covariance.
+#pragma once
+
+#include <array>
+
+#include "traverse/estimators/initialization.h"
+#include "traverse/estimators/trajectory.h"
+#include "traverse/rover/kinematics.h"
+
+namespace traverse::est {
+
+inline constexpr int kEkfStates = 21;
+using EkfVector = Eigen::Matrix<double, kEkfStates, 1>;
+using EkfMatrix = Eigen::Matrix<double, kEkfStates, kEkfStates>;
+
+/// Offsets of the error-state blocks.
+struct EkfIndex {
+  static constexpr int kTheta = 0, kRate = 3, kPos = 6, kVel = 9, kXi = 12, kBias = 18;
+};
+
+struct EkfOptions {
+  enum class AttitudeModel { kGyroDriven, kGyroMeasurement };
+  enum class VelocityModel { kPerturbation, kAccelDriven };
+  AttitudeModel attitude = AttitudeModel::kGyroDriven;    ///< O-1 hybrid (default) or K-2 + K-12
+  VelocityModel velocity = VelocityModel::kPerturbation;  ///< K-1 (default) or O-4
+  bool use_sun = true, use_slip = true, use_rest = true;
+  bool gating = true;
+  double gate_probability = 0.9999;  ///< χ² gate for sun and slip innovations
+  double zero_velocity_sigma_mps = 0.001;
+  double zero_rate_sigma_rad_s = 1e-4;          ///< added to the gyro noise
+  double rate_noise_scale_measured_axes = 0.1;  ///< n_ω on gyro-driven axes is small (O §2.2.1)
+  double initial_velocity_sigma_mps = 0.01;
+  double initial_rate_sigma_rad_s = 0.01;
+  double initial_contact_sigma_rad = 0.1;
+  double initial_position_sigma_m = 1e-4;
+};
+
+/// Counts of each update, and of the innovations the χ² gate rejected.
+struct EkfStats {
+  long propagations = 0;
+  long slip_updates = 0, slip_rejected = 0;
+  long sun_updates = 0, sun_rejected = 0;
+  long gyro_updates = 0, zero_velocity_updates = 0, zero_rate_updates = 0, gravity_updates = 0;
+  long bias_updates = 0;
+};
+
+/// Inputs at one instant: gyro reading (all three axes; with a heading-only gyro only z is
+/// meaningful), commanded body twist (zero when the log has no cmd.csv), accelerometer reading.
+struct EkfInputs {
+  Vec3d gyro = Vec3d::Zero();
+  Vec3d v_cmd = Vec3d::Zero(), w_cmd = Vec3d::Zero();
+  Vec3d accel = Vec3d::Zero();
+  bool has_accel = false;
+};
+
+/// Joint data at a joint sample: wheel frames g_{s f_i} and the wheels' joint twists J q̇ (K-17).
+struct JointSample {
+  double t = 0.0;
+  std::array<Posed, rover::kNumWheels> T_body_wheel;
+  std::array<Twistd, rover::kNumWheels> joint_twist;
+};
+
+class Ekf {
+ public:
+  Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
+      const EkfOptions& options, const InitialState& init, bool three_axis_gyro, bool has_cmd);
+
+  /// Propagates over dt with inputs evaluated at the middle of the interval.
+  void propagate(double dt, const EkfInputs& in);
+  /// K-17 for every wheel (sequential, four rows each) against the nominal slip of K §2.3.4.
+  void updateSlip(const JointSample& js, const EkfInputs& in);
+  /// K-15/K-16 with the sun direction in the site frame.
+  void updateSun(const Vec2d& s_m, const Vec3d& sun_site);
+  /// K-12 with the gyro as a measurement (AttitudeModel::kGyroMeasurement).
+  void updateGyro(const Vec3d& w_m);
+  void updateZeroVelocity(const EkfInputs& in);
+  /// At rest the rate perturbation ω_p is zero (and with K-12, ω_c + ω_p).
+  void updateZeroRate(const EkfInputs& in);
+  /// At rest each gyro sample measures the bias (gyro-driven model; K-12 does it in updateGyro).
+  void updateRestBias(const EkfInputs& in);
+  void updateGravity(const sensors::RollPitchMeasurement& m);
+
+  /// Sample periods of the gyro and accelerometer: white noise per sample σ becomes the density
+  /// σ² Δt when those readings drive the process.
+  void setSamplePeriods(double gyro_s, double accel_s) {
+    gyro_period_ = gyro_s, accel_period_ = accel_s;
+  }
+
+  TrajectoryNode node(double t, const EkfInputs& in) const;
+  const EkfStats& stats() const { return stats_; }
+  const EkfMatrix& covariance() const { return P_; }
+
+  /// Body rate and velocity of the current estimate (templated so Jets differentiate them).
+  template <typename T>
+  Vec3<T> omega(const Vec3<T>& w_p, const Vec3<T>& b, const EkfInputs& in) const;
+  template <typename T>
+  Vec3<T> velocity(const Vec3<T>& v_p, const EkfInputs& in) const {
+    return in.v_cmd.cast<T>() + v_p;
+  }
+
+ private:
+  template <int M>
+  bool update(const Eigen::Matrix<double, M, 1>& r, const Eigen::Matrix<double, M, kEkfStates>& H,
+              const Eigen::Matrix<double, M, M>& R, double gate);
+  void absorb(const EkfVector& dx);
+
+  const io::RoverConfig& config_;
+  const rover::RoverGeometry& geometry_;
+  EkfOptions options_;
+  bool three_axis_, has_cmd_;
+  Mat3d S_;  ///< ∂ω/∂b = −S_ (gyro-driven) — the gyro's axes
+  double gate2_, gate4_;
+  double gyro_period_ = 0.05, accel_period_ = 0.1;
+  Vec3d last_w_cmd_ = Vec3d::Zero();  ///< commanded rate at the latest propagation (K-12 mode)
+  // Nominal state.
+  Quatd q_;
+  Vec3d w_p_, x_, v_p_, b_;
+  Eigen::Matrix<double, rover::kNumWheels, 1> xi_;
+  EkfMatrix P_;
+  EkfStats stats_;
+};
+
+struct EkfResult {
+  Trajectory trajectory;  ///< one node per joint sample
+  EkfStats stats;
+};
+
+/// Runs the filter over a whole log (events in time order: gyro, joints, sun, accel).
+EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const InitialState& init,
+                 const EkfOptions& options = {});
+
+/// Wheel frames and joint twists for every joint sample (joint rates by smoothing and
+/// differencing, K §3).
+std::vector<JointSample> jointSamples(const io::TraverseLog& log);
+
+/// χ² quantile for `dof` degrees of freedom (Wilson–Hilferty), for gating.
+double chiSquareQuantile(double probability, int dof);
+
+}  // namespace traverse::est

@@ -1,0 +1,34 @@
+// Initial state shared by every estimator: attitude from the first rest window — roll and pitch
+// from gravity (Nickels, rest mode), yaw from the sun direction (the sun sensor and gravity are
+// two non-parallel vectors, so the attitude is fully observable at rest) — bias from the rest
+// window's mean gyro, position as given (it is not observable from onboard sensors).
+#pragma once
+
+#include "traverse/estimators/segmentation.h"
+
+namespace traverse::est {
+
+struct InitOptions {
+  Vec3d position_site = Vec3d::Zero();  ///< where the traverse starts (m)
+  double yaw_without_sun_rad = 0.0;     ///< used when no sun reading is available at the start
+};
+
+struct InitialState {
+  double t = 0.0;
+  Vec3d p_site = Vec3d::Zero();
+  Quatd q_site_body = Quatd::Identity();
+  Vec3d bias = Vec3d::Zero();
+  /// 1σ of roll, pitch, yaw (rad) and of the bias (rad/s) behind the values above.
+  Vec3d attitude_sigma = Vec3d::Constant(0.1);
+  Vec3d bias_sigma = Vec3d::Constant(0.005);
+};
+
+InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
+                          const InitOptions& options = {});
+
+/// Yaw (rad) that makes the measured sun reading consistent with roll and pitch: with
+/// u = Ry(pitch) Rx(roll) s_body, yaw = atan2(s_site,y, s_site,x) − atan2(u_y, u_x).
+double yawFromSun(const Vec2d& s_m, double roll, double pitch, const Mat3d& R_body_sensor,
+                  const Vec3d& sun_site);
+
+}  // namespace traverse::est

@@ -1,0 +1,35 @@
+// The estimation pipeline on one log: segmentation → initial state → dead reckoning and the
+// forward EKF (→ the smoother, when it exists), and the per-segment rows of segments.csv.
+#pragma once
+
+#include <vector>
+
+#include "traverse/estimators/dead_reckoning.h"
+#include "traverse/estimators/ekf.h"
+#include "traverse/estimators/segments_output.h"
+
+namespace traverse::est {
+
+struct PipelineConfig {
+  SegmentationOptions segmentation;
+  InitOptions init;
+  DeadReckoningOptions dead_reckoning;
+  EkfOptions ekf;
+};
+
+struct Estimates {
+  Segmentation segmentation;
+  InitialState init;
+  Trajectory dr;
+  EkfResult ekf;
+  std::vector<SegmentRow> segments;
+};
+
+Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {});
+
+/// segments.csv rows from the segmentation and a trajectory with bias estimates: a rest row
+/// carries the window's own bias measurement on the gyro's axes (mean ± standard error), a
+/// motion row the trajectory's bias at the segment's end.
+std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& trajectory);
+
+}  // namespace traverse::est

@@ -1,0 +1,27 @@
+// segments.csv (outputs.md): one row per rest or motion segment with the gyro bias ± σ for
+// that segment and, when the smoother ran, its solver summary.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "traverse/estimators/segmentation.h"
+
+namespace traverse::est {
+
+struct SegmentRow {
+  int segment = 0;
+  double t_start = 0.0, t_end = 0.0;
+  Segment::Kind kind = Segment::Kind::kRest;
+  Vec3d bias = Vec3d::Zero(), sigma_bias = Vec3d::Zero();
+  std::string status;  ///< converged | no_convergence | fallback_ekf; empty without a smoother
+  std::optional<int> iterations;
+  std::optional<double> final_cost, solve_seconds;
+};
+
+/// Writes the rows atomically (empty fields where a value does not apply).
+void writeSegments(const std::filesystem::path& file, const std::vector<SegmentRow>& rows);
+
+}  // namespace traverse::est

@@ -1,0 +1,52 @@
+// An estimated trajectory: what every estimator (dead reckoning, EKF, smoother) produces and
+// what evaluation and the output files consume (../shared/docs/outputs.md, docs/outputs.md).
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "traverse/core/types.h"
+#include "traverse/io/log.h"
+
+namespace traverse::est {
+
+inline constexpr int kNumWheels = 6;
+
+/// One estimator node. Attitude error convention: q = q̂ ⊗ Exp(δθ) (body-frame small angle).
+struct TrajectoryNode {
+  double t = 0.0;
+  Vec3d p_site = Vec3d::Zero();
+  Quatd q_site_body = Quatd::Identity();
+  Vec3d v_body = Vec3d::Zero();
+  Vec3d w_body = Vec3d::Zero();
+  std::array<double, kNumWheels> xi{};
+  Vec3d bias = Vec3d::Zero();  ///< gyro bias (rad/s, body axes)
+  /// Covariance of [δp_site (m); δθ_body (rad)] — valid when the trajectory has_covariance.
+  Mat6d covariance = Mat6d::Zero();
+  Vec3d bias_sigma = Vec3d::Zero();  ///< 1σ of the bias (not written to the node files)
+};
+
+struct Trajectory {
+  std::string name;  ///< "dr", "ekf", "smoothed"
+  bool has_covariance = false;
+  std::vector<TrajectoryNode> nodes;
+};
+
+/// Output columns (outputs.md): t,x,y,z,qw,qx,qy,qz,vx,vy,vz,wx,wy,wz,xi1..xi6,bx,by,bz, then
+/// with covariance the 1σ columns sx,sy,sz,sroll,spitch,syaw (attitude σ: body-frame small
+/// angles about x, y, z, radians) and the off-diagonal terms cxy,cxz,cyz (m²) and
+/// crp,cry,cpy (rad²) of the position and attitude blocks, appended so that NEES can be
+/// computed from the file alone.
+io::Stream toStream(const Trajectory& trajectory);
+/// Inverse of toStream (covariance: the position and attitude blocks; cross terms zero).
+Trajectory fromStream(const io::Stream& stream, const std::string& name);
+
+/// Writes NAME.csv and NAME.tum (`t tx ty tz qx qy qz qw`, scalar last, readable by evo)
+/// into `dir`, each atomically.
+void writeTrajectory(const std::filesystem::path& dir, const Trajectory& trajectory);
+/// Reads NAME.csv from `dir`.
+Trajectory readTrajectory(const std::filesystem::path& dir, const std::string& name);
+
+}  // namespace traverse::est

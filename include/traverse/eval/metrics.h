@@ -1,0 +1,104 @@
+// Accuracy of an estimated trajectory against truth: the metrics of metrics.json
+// (../shared/docs/outputs.md; conventions in docs/evaluation.md).
+//
+// Conventions (p̂, q̂ estimate; p, q truth interpolated at each node's time t_k):
+//  - Initial translation. The initial position is not observable from onboard sensors, so every
+//    metric except the ATE first translates the estimate by p(t_0) − p̂_0. There is no rotation:
+//    heading is observable through the sun sensor and its error is part of what is measured.
+//  - Path length L_path: the 3-D length of the truth polyline between the estimate's first and
+//    last node times.
+//  - distance_error_pct = |‖p̂_N − p̂_0‖ − ‖p(t_N) − p(t_0)‖| / ‖p(t_N) − p(t_0)‖ × 100.
+//  - final_position_error_m = ‖p̂_N − p(t_N)‖; final_error_pct_of_path = that / L_path × 100.
+//  - max_cross_track_m = max_k |e_h · n_k|, e_h the horizontal error, n_k the horizontal unit
+//    vector perpendicular to the true direction of travel (true site velocity, or the true
+//    heading (cos ψ, sin ψ) when the horizontal speed is below min_speed_mps).
+//  - position_rmse_m = sqrt(mean_k ‖p̂_k − p(t_k)‖²).
+//  - roll/pitch/yaw_rmse_deg: RMSE of wrap(rpy(q̂_k) − rpy(q(t_k))) to (−π, π], Z-Y-X angles of
+//    so3::rollPitchYaw.
+//  - contact_angle_rmse_deg: RMSE over nodes and the six wheels of ξ̂ − ξ (truth has xi).
+//  - bias_z_error_dps = mean_k |b̂_z − b_z| in deg/s (truth has bz).
+//  - ate_posyaw_m: RMSE after the best translation + yaw alignment (eval/alignment.h).
+//  - rpe_pct_per_m (OpenVINS-style, by distance travelled): segment d = rpe_segment_m, or
+//    rpe_short_fraction × L_path when L_path < rpe_short_path_m; for each node i the first
+//    node j with s(t_j) − s(t_i) ≥ d (s: truth distance travelled); error
+//    ‖R̂_iᵀ(p̂_j − p̂_i) − R_iᵀ(p_j − p_i)‖ / (s(t_j) − s(t_i)) × 100; mean over pairs.
+//  - NEES (trajectories with covariance): e_p = p − p̂, e_θ = Log(q̂⁻¹ q) = so3::boxminus(q, q̂)
+//    (the body-frame error of q = q̂ ⊗ Exp(δθ)); eᵀ P⁻¹ e with P the position or attitude 3×3
+//    block; mean over nodes whose block has all eigenvalues ≥ min_covariance_eigenvalue
+//    (the zero covariance of a given initial position is skipped). nees_dof = 3.
+// A metric that cannot be computed (no truth group, zero path, no covariance) is omitted.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "traverse/estimators/trajectory.h"
+#include "traverse/eval/truth.h"
+
+namespace traverse::eval {
+
+/// Every metric key of outputs.md, in the order metrics.json lists them.
+inline constexpr std::array<std::string_view, 15> kMetricKeys = {
+    "distance_error_pct", "final_position_error_m", "final_error_pct_of_path",
+    "max_cross_track_m",  "position_rmse_m",        "roll_rmse_deg",
+    "pitch_rmse_deg",     "yaw_rmse_deg",           "contact_angle_rmse_deg",
+    "bias_z_error_dps",   "ate_posyaw_m",           "rpe_pct_per_m",
+    "nees_position_mean", "nees_attitude_mean",     "nees_dof"};
+
+/// Metric key → value, in insertion order (evaluate returns them in kMetricKeys order).
+struct Metrics {
+  std::vector<std::pair<std::string, double>> entries;
+
+  /// Replaces the value of `key` or appends it.
+  void set(std::string_view key, double value);
+  std::optional<double> get(std::string_view key) const;
+  bool has(std::string_view key) const { return get(key).has_value(); }
+  std::vector<std::string> keys() const;
+};
+
+struct EvaluateOptions {
+  double rpe_segment_m = 1.0;        ///< RPE segment length by distance travelled
+  double rpe_short_path_m = 4.0;     ///< below this path length the segment is a fraction
+  double rpe_short_fraction = 0.25;  ///< … of the path length
+  double min_speed_mps = 1e-3;       ///< below: cross-track direction from the true heading instead
+  double min_covariance_eigenvalue = 1e-16;  ///< NEES skips blocks with a smaller eigenvalue
+};
+
+/// The metrics of one trajectory (conventions above). An empty trajectory gives no metrics.
+Metrics evaluate(const est::Trajectory& trajectory, const TruthTrajectory& truth,
+                 const EvaluateOptions& options = {});
+
+/// metrics.json's name of an estimator: the trajectory names "dr", "ekf" are kept, "smoothed"
+/// becomes "smoother".
+std::string estimatorKey(std::string_view trajectory_name);
+
+struct EstimatorMetrics {
+  std::string estimator;  ///< the JSON key: "dr", "ekf", "smoother"
+  Metrics metrics;
+};
+
+/// The content of metrics.json.
+struct MetricsReport {
+  std::string log;             ///< the log directory's name
+  double path_length_m = 0.0;  ///< truth path length over the span of all trajectories
+  std::vector<EstimatorMetrics> estimators;
+};
+
+/// Evaluates every trajectory (in the given order) against one truth.
+MetricsReport evaluateAll(std::string log_name, const std::vector<est::Trajectory>& trajectories,
+                          const TruthTrajectory& truth, const EvaluateOptions& options = {});
+
+/// {"log": …, "path_length_m": …, "estimators": {"dr": {…}, …}} (outputs.md), newline-ended.
+std::string formatMetricsJson(const MetricsReport& report);
+/// Writes formatMetricsJson atomically (tmp file + rename).
+void writeMetricsJson(const std::filesystem::path& file, const MetricsReport& report);
+
+/// A plain-text table: one row per metric key, one column per estimator ("-" when omitted).
+std::string formatMetricsTable(const MetricsReport& report);
+
+}  // namespace traverse::eval

@@ -1,0 +1,494 @@
+#include "traverse/estimators/ekf.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <ceres/jet.h>
+
+#include "traverse/rover/joint_rates.h"
+#include "traverse/rover/nominal_slip.h"
+#include "traverse/sensors/accelerometer.h"
+#include "traverse/sensors/gravity.h"
+#include "traverse/sensors/sun_sensor.h"
+
+namespace traverse::est {
+namespace {
+
+using I = EkfIndex;
+
+/// Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1.2e-9).
+double normalQuantile(double p) {
+  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02,  -2.759285104469687e+02,
+                             1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
+  static const double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+                             6.680131188771972e+01, -1.328068155288572e+01};
+  static const double c[] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+                             -2.549732539343734e+00, 4.374664141464968e+00,  2.938163982698783e+00};
+  static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+                             3.754408661907416e+00};
+  if (p < 0.02425) {
+    const double q = std::sqrt(-2 * std::log(p));
+    return (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
+           ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
+  }
+  if (p > 1 - 0.02425) return -normalQuantile(1 - p);
+  const double q = p - 0.5, r = q * q;
+  return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
+         (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1);
+}
+
+template <int N>
+using Jet = ceres::Jet<double, N>;
+
+/// Value and Jacobian of f at x (Jets): the Jacobians of the shared models.
+template <int M, int N, typename F>
+void jacobian(const F& f, const Eigen::Matrix<double, N, 1>& x, Eigen::Matrix<double, M, 1>* value,
+              Eigen::Matrix<double, M, N>* J) {
+  Eigen::Matrix<Jet<N>, N, 1> xj;
+  for (int i = 0; i < N; ++i) xj[i] = Jet<N>(x[i], i);
+  const Eigen::Matrix<Jet<N>, M, 1> y = f(xj);
+  for (int r = 0; r < M; ++r) {
+    (*value)[r] = y[r].a;
+    J->row(r) = y[r].v.transpose();
+  }
+}
+
+}  // namespace
+
+double chiSquareQuantile(double probability, int dof) {
+  const double k = dof, z = normalQuantile(probability);
+  const double h = 1.0 - 2.0 / (9.0 * k) + z * std::sqrt(2.0 / (9.0 * k));
+  return k * h * h * h;
+}
+
+Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
+         const EkfOptions& options, const InitialState& init, bool three_axis_gyro, bool has_cmd)
+    : config_(config),
+      geometry_(geometry),
+      options_(options),
+      three_axis_(three_axis_gyro),
+      has_cmd_(has_cmd) {
+  S_ = three_axis_ ? Mat3d::Identity() : Mat3d(Vec3d(0, 0, 1).asDiagonal());
+  gate2_ = chiSquareQuantile(options.gate_probability, 2);
+  gate4_ = chiSquareQuantile(options.gate_probability, 4);
+  q_ = init.q_site_body;
+  x_ = init.p_site;
+  b_ = init.bias;
+  w_p_.setZero(), v_p_.setZero(), xi_.setZero();
+  P_.setZero();
+  P_.block<3, 3>(I::kTheta, I::kTheta) = init.attitude_sigma.cwiseAbs2().asDiagonal();
+  P_.block<3, 3>(I::kRate, I::kRate)
+      .diagonal()
+      .setConstant(std::pow(options.initial_rate_sigma_rad_s, 2));
+  P_.block<3, 3>(I::kPos, I::kPos)
+      .diagonal()
+      .setConstant(std::pow(options.initial_position_sigma_m, 2));
+  P_.block<3, 3>(I::kVel, I::kVel)
+      .diagonal()
+      .setConstant(std::pow(options.initial_velocity_sigma_mps, 2));
+  P_.block<6, 6>(I::kXi, I::kXi)
+      .diagonal()
+      .setConstant(std::pow(options.initial_contact_sigma_rad, 2));
+  P_.block<3, 3>(I::kBias, I::kBias) = init.bias_sigma.cwiseAbs2().asDiagonal();
+}
+
+// O-1 (hybrid): measured axes from the bias-corrected gyro, the others from ω_c; ω_p on all.
+// K-2 with K-12 as a measurement: ω = ω_c + ω_p.
+template <typename T>
+Vec3<T> Ekf::omega(const Vec3<T>& w_p, const Vec3<T>& b, const EkfInputs& in) const {
+  if (options_.attitude == EkfOptions::AttitudeModel::kGyroMeasurement)
+    return in.w_cmd.cast<T>() + w_p;
+  const Mat3<T> S = S_.cast<T>();
+  return S * (in.gyro.cast<T>() - b) + (Mat3<T>::Identity() - S) * in.w_cmd.cast<T>() + w_p;
+}
+
+void Ekf::propagate(double dt, const EkfInputs& in) {
+  last_w_cmd_ = in.w_cmd;
+  if (dt <= 0) return;
+  ++stats_.propagations;
+  const bool accel_driven =
+      options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
+  const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
+  const Vec3d w = omega<double>(w_p_, b_, in);
+  const Vec3d v = accel_driven ? v_p_ : velocity<double>(v_p_, in);
+  const Mat3d R = q_.toRotationMatrix();
+  // Damping: a perturbation decays towards the prescribed motion; without a prescription
+  // (no cmd.csv) the velocity, and the yaw rate in K-12 mode, are random walks (K §4.2).
+  const auto& pc = config_.process;
+  const double a_v = has_cmd_ && !accel_driven ? -1.0 / pc.velocity_time_constant_s : 0.0;
+  Vec3d a_w = Vec3d::Constant(-1.0 / pc.rate_time_constant_s);
+  if (!hybrid && !has_cmd_) a_w.z() = 0.0;
+  const double a_xi = -1.0 / pc.contact_angle_time_constant_s;
+
+  EkfMatrix F = EkfMatrix::Zero();
+  F.block<3, 3>(I::kTheta, I::kTheta) = -so3::skew(w);
+  F.block<3, 3>(I::kTheta, I::kRate).setIdentity();
+  if (hybrid) F.block<3, 3>(I::kTheta, I::kBias) = -S_;
+  F.block<3, 3>(I::kRate, I::kRate) = a_w.asDiagonal();
+  F.block<3, 3>(I::kPos, I::kTheta) = -R * so3::skew(v);
+  F.block<3, 3>(I::kPos, I::kVel) = R;
+  F.block<6, 6>(I::kXi, I::kXi).diagonal().setConstant(a_xi);
+  Vec3d v_dot = Vec3d::Zero();
+  if (accel_driven) {  // O-4, linearised with Jets through the shared accelerometer model
+    Eigen::Matrix<double, 12, 1> s;
+    s << Vec3d::Zero(), w_p_, v_p_, b_;
+    Eigen::Matrix<double, 3, 12> J;
+    jacobian<3, 12>(
+        [&](const auto& z) {
+          using T = typename std::decay_t<decltype(z)>::Scalar;
+          const Quat<T> q = so3::boxplus(Quat<T>(q_.cast<T>()), Vec3<T>(z.template head<3>()));
+          const Vec3<T> wt = omega<T>(z.template segment<3>(3), z.template tail<3>(), in);
+          return sensors::velocityRateFromAccel<T>(
+              in.accel.cast<T>(), q, Vec3<T>(z.template segment<3>(6)), wt, Vec3<T>::Zero(),
+              config_.accel.lever_arm_m, config_.gravity_mps2);
+        },
+        s, &v_dot, &J);
+    F.block<3, 3>(I::kVel, I::kTheta) = J.block<3, 3>(0, 0);
+    F.block<3, 3>(I::kVel, I::kRate) = J.block<3, 3>(0, 3);
+    F.block<3, 3>(I::kVel, I::kVel) = J.block<3, 3>(0, 6);
+    F.block<3, 3>(I::kVel, I::kBias) = J.block<3, 3>(0, 9);
+  } else {
+    F.block<3, 3>(I::kVel, I::kVel).diagonal().setConstant(a_v);
+  }
+  // Continuous noise densities.
+  EkfVector qc = EkfVector::Zero();
+  const double n_w = pc.rate_noise_rad_s2_per_sqrt_hz;
+  for (int a = 0; a < 3; ++a) {
+    const bool measured = hybrid && S_(a, a) > 0;
+    qc[I::kRate + a] = std::pow(measured ? n_w * options_.rate_noise_scale_measured_axes : n_w, 2);
+    // A gyro-driven axis inherits the gyro's white noise (density σ² Δt at its sample period).
+    if (measured)
+      qc[I::kTheta + a] = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s * gyro_period_;
+  }
+  qc.segment<3>(I::kVel).setConstant(accel_driven
+                                         ? std::pow(config_.accel.noise_mps2, 2) * accel_period_
+                                         : std::pow(pc.velocity_noise_mps2_per_sqrt_hz, 2));
+  qc.segment<6>(I::kXi).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
+  qc.segment<3>(I::kBias).setConstant(std::pow(config_.gyro.bias_random_walk_rad_s_per_sqrt_s, 2));
+
+  const EkfMatrix Fdt = F * dt;
+  const EkfMatrix Phi = EkfMatrix::Identity() + Fdt + 0.5 * Fdt * Fdt;
+  const EkfMatrix Qd =
+      0.5 * (Phi * qc.asDiagonal() * Phi.transpose() + EkfMatrix(qc.asDiagonal())) * dt;
+  P_ = Phi * P_ * Phi.transpose() + Qd;
+  P_ = 0.5 * (P_ + P_.transpose());
+
+  // Nominal state (midpoint rule).
+  const Quatd q_mid = q_ * so3::expQuat(Vec3d(0.5 * dt * w));
+  const Vec3d v_mid = accel_driven ? Vec3d(v + 0.5 * dt * v_dot) : v;
+  x_ += q_mid * v_mid * dt;
+  q_ = (q_ * so3::expQuat(Vec3d(w * dt))).normalized();
+  w_p_ = (a_w * dt).array().exp().matrix().cwiseProduct(w_p_);
+  v_p_ = accel_driven ? Vec3d(v_p_ + v_dot * dt) : Vec3d(std::exp(a_v * dt) * v_p_);
+  xi_ *= std::exp(a_xi * dt);
+}
+
+template <int M>
+bool Ekf::update(const Eigen::Matrix<double, M, 1>& r,
+                 const Eigen::Matrix<double, M, kEkfStates>& H,
+                 const Eigen::Matrix<double, M, M>& R, double gate) {
+  const Eigen::Matrix<double, kEkfStates, M> PHt = P_ * H.transpose();
+  const Eigen::Matrix<double, M, M> S = H * PHt + R;
+  const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  if (gate > 0 && r.dot(llt.solve(r)) > gate) return false;
+  const Eigen::Matrix<double, kEkfStates, M> K = llt.solve(PHt.transpose()).transpose();
+  const EkfMatrix IKH = EkfMatrix::Identity() - K * H;
+  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();  // Joseph form
+  absorb(K * r);
+  return true;
+}
+
+void Ekf::absorb(const EkfVector& dx) {
+  const Vec3d dtheta = dx.segment<3>(I::kTheta);
+  q_ = so3::boxplus(q_, dtheta).normalized();  // K-21
+  w_p_ += dx.segment<3>(I::kRate);
+  x_ += dx.segment<3>(I::kPos);
+  v_p_ += dx.segment<3>(I::kVel);
+  xi_ += dx.segment<6>(I::kXi);
+  b_ += dx.segment<3>(I::kBias);
+  // Reset Jacobian of the attitude error: δθ⁺ ≈ (I − ½[dθ]×) δθ.
+  const Mat3d G = Mat3d::Identity() - 0.5 * so3::skew(dtheta);
+  P_.block<3, kEkfStates>(I::kTheta, 0) = G * P_.block<3, kEkfStates>(I::kTheta, 0);
+  P_.block<kEkfStates, 3>(0, I::kTheta) = P_.block<kEkfStates, 3>(0, I::kTheta) * G.transpose();
+}
+
+void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
+  const bool accel_driven =
+      options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
+  const auto v_now = [&] { return accel_driven ? v_p_ : velocity<double>(v_p_, in); };
+  // Nominal slip (K §2.3.4) from the commanded motion, or from the estimate without cmd.csv.
+  const Twistd nominal_twist =
+      has_cmd_ ? rover::nominalBodyTwist(geometry_, in.v_cmd.x(), in.w_cmd.z())
+               : rover::nominalBodyTwist(geometry_, v_now().x(), omega<double>(w_p_, b_, in).z());
+  const auto& sn = config_.slip_noise;
+  const Eigen::Matrix4d R =
+      Vec4d(sn.longitudinal_mps * sn.longitudinal_mps, sn.lateral_mps * sn.lateral_mps,
+            sn.normal_mps * sn.normal_mps, sn.spin_rad_s * sn.spin_rad_s)
+          .asDiagonal();
+  const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
+  for (int i = 0; i < rover::kNumWheels; ++i) {
+    const double radius = geometry_.wheels[i].radius;
+    const Twistd& jt = js.joint_twist[i];
+    // Re-linearise at the state the previous wheel's update left (sequential processing).
+    Eigen::Matrix<double, 7, 1> s;
+    s << v_now(), omega<double>(w_p_, b_, in), xi_[i];
+    Vec4d t;
+    Eigen::Matrix<double, 4, 7> J;
+    jacobian<4, 7>(
+        [&](const auto& z) {
+          using T = typename std::decay_t<decltype(z)>::Scalar;
+          return rover::slipConstraint<T>(js.T_body_wheel[i], radius, jt,
+                                          Vec3<T>(z.template head<3>()),
+                                          Vec3<T>(z.template segment<3>(3)), z[6]);
+        },
+        s, &t, &J);
+    Eigen::Matrix<double, 4, kEkfStates> H = Eigen::Matrix<double, 4, kEkfStates>::Zero();
+    H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
+    H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
+    if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * S_;
+    H.col(I::kXi + i) = J.col(6);
+    const Vec4d r = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, jt) - t;
+    ++stats_.slip_updates;
+    if (!update<4>(r, H, R, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
+  }
+}
+
+void Ekf::updateSun(const Vec2d& s_m, const Vec3d& sun_site) {
+  const sensors::SunSensorGeometry geo{config_.sun_sensor.R_body_sensor,
+                                       0.5 * config_.sun_sensor.field_of_view_rad};
+  if (sensors::sunOffBoresight(q_, geo, sun_site) > geo.half_fov_rad + 0.1)
+    return;  // predicted out of view
+  Vec2d h;
+  Eigen::Matrix<double, 2, 3> J;
+  jacobian<2, 3>(
+      [&](const auto& d) {
+        using T = typename std::decay_t<decltype(d)>::Scalar;
+        return sensors::sunSensorPredict<T>(so3::boxplus(Quat<T>(q_.cast<T>()), Vec3<T>(d)), geo,
+                                            sun_site);
+      },
+      Vec3d::Zero().eval(), &h, &J);
+  Eigen::Matrix<double, 2, kEkfStates> H = Eigen::Matrix<double, 2, kEkfStates>::Zero();
+  H.block<2, 3>(0, I::kTheta) = J;
+  const double n2 = config_.sun_sensor.noise * config_.sun_sensor.noise;
+  ++stats_.sun_updates;
+  if (!update<2>(Vec2d(s_m - h), H, Eigen::Matrix2d::Identity() * n2,
+                 options_.gating ? gate2_ : 0.0)) {
+    ++stats_.sun_rejected;
+  }
+}
+
+void Ekf::updateGyro(const Vec3d& w_m) {
+  // K-12: ω_m = B_g(ω + b), ω = ω_c + ω_p; one scalar update per measured axis.
+  const double n2 = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s;
+  for (int a = 0; a < 3; ++a) {
+    if (S_(a, a) == 0) continue;
+    Eigen::Matrix<double, 1, kEkfStates> H = Eigen::Matrix<double, 1, kEkfStates>::Zero();
+    H(0, I::kRate + a) = 1.0, H(0, I::kBias + a) = 1.0;
+    // The commanded part is zero unless cmd.csv gives it.
+    const double predicted = w_p_[a] + b_[a] + last_w_cmd_[a];
+    update<1>(Eigen::Matrix<double, 1, 1>(w_m[a] - predicted), H, Eigen::Matrix<double, 1, 1>(n2),
+              0.0);
+    ++stats_.gyro_updates;
+  }
+}
+
+void Ekf::updateZeroVelocity(const EkfInputs& in) {
+  const bool accel_driven =
+      options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
+  const Vec3d v = accel_driven ? v_p_ : velocity<double>(v_p_, in);
+  Eigen::Matrix<double, 3, kEkfStates> H = Eigen::Matrix<double, 3, kEkfStates>::Zero();
+  H.block<3, 3>(0, I::kVel).setIdentity();
+  const double s2 = options_.zero_velocity_sigma_mps * options_.zero_velocity_sigma_mps;
+  update<3>(Vec3d(-v), H, Mat3d::Identity() * s2, 0.0);
+  ++stats_.zero_velocity_updates;
+}
+
+void Ekf::updateZeroRate(const EkfInputs& in) {
+  // At rest the body does not turn: the rate not explained by the gyro (O-1) or the command
+  // (K-2), ω_p, is zero. (With the gyro-driven model, ω = S(ω_m − b) + ω_p; putting the whole
+  // ω = 0 would let ω_p soak up the bias — updateRestBias gives the bias its own measurement.)
+  const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
+  Eigen::Matrix<double, 3, kEkfStates> H = Eigen::Matrix<double, 3, kEkfStates>::Zero();
+  H.block<3, 3>(0, I::kRate).setIdentity();
+  const Vec3d predicted = hybrid ? w_p_ : Vec3d(in.w_cmd + w_p_);
+  const double s2 = options_.zero_rate_sigma_rad_s * options_.zero_rate_sigma_rad_s;
+  update<3>(Vec3d(-predicted), H, Mat3d::Identity() * s2, 0.0);
+  ++stats_.zero_rate_updates;
+}
+
+void Ekf::updateRestBias(const EkfInputs& in) {
+  // At rest a gyro sample is bias plus noise, ω_m = B_g b + n_g (K-12 with ω = 0): Nickels'
+  // per-axis drift filter, one scalar update per measured axis and sample.
+  const double n2 = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s;
+  for (int a = 0; a < 3; ++a) {
+    if (S_(a, a) == 0) continue;
+    Eigen::Matrix<double, 1, kEkfStates> H = Eigen::Matrix<double, 1, kEkfStates>::Zero();
+    H(0, I::kBias + a) = 1.0;
+    update<1>(Eigen::Matrix<double, 1, 1>(in.gyro[a] - b_[a]), H, Eigen::Matrix<double, 1, 1>(n2),
+              0.0);
+    ++stats_.bias_updates;
+  }
+}
+
+void Ekf::updateGravity(const sensors::RollPitchMeasurement& m) {
+  Vec2d h;
+  Eigen::Matrix<double, 2, 3> J;
+  jacobian<2, 3>(
+      [&](const auto& d) {
+        using T = typename std::decay_t<decltype(d)>::Scalar;
+        return sensors::gravityRollPitchPredict<T>(so3::boxplus(Quat<T>(q_.cast<T>()), Vec3<T>(d)));
+      },
+      Vec3d::Zero().eval(), &h, &J);
+  Eigen::Matrix<double, 2, kEkfStates> H = Eigen::Matrix<double, 2, kEkfStates>::Zero();
+  H.block<2, 3>(0, I::kTheta) = J;
+  const Vec2d r(so3::wrapAngle(m.roll_pitch.x() - h.x()), so3::wrapAngle(m.roll_pitch.y() - h.y()));
+  update<2>(r, H, m.covariance, 0.0);
+  ++stats_.gravity_updates;
+}
+
+TrajectoryNode Ekf::node(double t, const EkfInputs& in) const {
+  const bool accel_driven =
+      options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
+  TrajectoryNode n;
+  n.t = t;
+  n.p_site = x_;
+  n.q_site_body = q_;
+  n.v_body = accel_driven ? v_p_ : velocity<double>(v_p_, in);
+  n.w_body = omega<double>(w_p_, b_, in);
+  for (int i = 0; i < rover::kNumWheels; ++i) n.xi[static_cast<size_t>(i)] = xi_[i];
+  n.bias = b_;
+  n.bias_sigma = P_.block<3, 3>(I::kBias, I::kBias).diagonal().cwiseSqrt();
+  n.covariance.topLeftCorner<3, 3>() = P_.block<3, 3>(I::kPos, I::kPos);
+  n.covariance.bottomRightCorner<3, 3>() = P_.block<3, 3>(I::kTheta, I::kTheta);
+  n.covariance.topRightCorner<3, 3>() = P_.block<3, 3>(I::kPos, I::kTheta);
+  n.covariance.bottomLeftCorner<3, 3>() = P_.block<3, 3>(I::kTheta, I::kPos);
+  return n;
+}
+
+namespace {
+
+/// Linear interpolation of a stream's row at time t (clamped at the ends).
+Eigen::VectorXd interpolateRow(const io::Stream& s, double t) {
+  const double* b = s.t.data();
+  const double* e = b + s.size();
+  const double* it = std::lower_bound(b, e, t);
+  if (it == b) return s.values.row(0).transpose();
+  if (it == e) return s.values.row(s.size() - 1).transpose();
+  const Eigen::Index k = it - b;
+  const double u = (t - s.t[k - 1]) / (s.t[k] - s.t[k - 1]);
+  return ((1 - u) * s.values.row(k - 1) + u * s.values.row(k)).transpose();
+}
+
+double medianPeriod(const io::Stream& s) {
+  if (s.size() < 2) return 0.1;
+  std::vector<double> d(static_cast<size_t>(s.size() - 1));
+  for (Eigen::Index k = 1; k < s.size(); ++k) d[static_cast<size_t>(k - 1)] = s.t[k] - s.t[k - 1];
+  std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+EkfInputs inputsAt(const io::TraverseLog& log, double t) {
+  EkfInputs in;
+  const Eigen::VectorXd g = interpolateRow(log.gyro, t);
+  in.gyro = g.size() == 3 ? Vec3d(g) : Vec3d(0, 0, g[0]);
+  if (log.cmd) {
+    const Eigen::VectorXd c = interpolateRow(*log.cmd, t);
+    in.v_cmd = c.head<3>(), in.w_cmd = c.tail<3>();
+  }
+  if (log.accel) in.accel = interpolateRow(*log.accel, t), in.has_accel = true;
+  return in;
+}
+
+/// The rest window containing t, at least `margin` inside it, or nullptr. `cursor` walks
+/// forward with t (events come in time order).
+const RestWindow* restAt(const Segmentation& seg, double t, double margin, size_t& cursor) {
+  while (cursor < seg.rests.size() && seg.rests[cursor].t_end < t) ++cursor;
+  if (cursor == seg.rests.size()) return nullptr;
+  const RestWindow& w = seg.rests[cursor];
+  return t >= w.t_start + margin && t <= w.t_end - margin ? &w : nullptr;
+}
+
+}  // namespace
+
+std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
+  const io::Stream& j = log.joints;
+  const Eigen::MatrixXd rates =
+      rover::jointRates(std::span<const double>(j.t.data(), static_cast<size_t>(j.size())),
+                        j.values, {log.config.joints.rate_filter_half_window});
+  std::vector<JointSample> out(static_cast<size_t>(j.size()));
+  for (Eigen::Index k = 0; k < j.size(); ++k) {
+    const rover::JointVectord q = j.values.row(k).transpose();
+    const rover::JointVectord q_dot = rates.row(k).transpose();
+    const auto kin = rover::forwardKinematics<double>(log.geometry, q);
+    JointSample& s = out[static_cast<size_t>(k)];
+    s.t = j.t[k];
+    for (int i = 0; i < rover::kNumWheels; ++i) {
+      s.T_body_wheel[i] = kin[i].T_body_wheel;
+      s.joint_twist[i] = rover::wheelJointTwist(kin[i], q_dot);
+    }
+  }
+  return out;
+}
+
+EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const InitialState& init,
+                 const EkfOptions& options) {
+  Ekf ekf(log.config, log.geometry, options, init, log.gyro.values.cols() == 3,
+          log.cmd.has_value());
+  ekf.setSamplePeriods(medianPeriod(log.gyro), log.accel ? medianPeriod(*log.accel) : 0.1);
+  const std::vector<JointSample> joints = jointSamples(log);
+  const double inf = std::numeric_limits<double>::infinity();
+  const double margin = 0.25;  // rest updates keep clear of the detected boundaries
+  Eigen::Index ig = 0, ij = 0, is = 0;
+  size_t rest_cursor = 0, gravity_next = 0;
+  double t = init.t;
+  EkfResult result;
+  result.trajectory.name = "ekf";
+  result.trajectory.has_covariance = true;
+  result.trajectory.nodes.reserve(joints.size());
+  const bool k12 = options.attitude == EkfOptions::AttitudeModel::kGyroMeasurement;
+  for (;;) {
+    while (log.sun && is < log.sun->size() && log.sun->values(is, 2) < 0.5)
+      ++is;  // valid = 0: ignored
+    const double tg = ig < log.gyro.size() ? log.gyro.t[ig] : inf;
+    const double tj = ij < log.joints.size() ? log.joints.t[ij] : inf;
+    const double ts = log.sun && options.use_sun && is < log.sun->size() ? log.sun->t[is] : inf;
+    const double tn = std::min({tg, tj, ts});
+    if (tn == inf) break;
+    if (tn > t) ekf.propagate(tn - t, inputsAt(log, 0.5 * (t + tn)));
+    t = tn;
+    const EkfInputs in = inputsAt(log, t);
+    const RestWindow* rest = options.use_rest ? restAt(seg, t, margin, rest_cursor) : nullptr;
+    if (tg == t) {
+      if (k12) ekf.updateGyro(in.gyro);  // K-12: at rest this observes the bias by itself
+      if (rest) {
+        ekf.updateZeroRate(in);
+        if (!k12) ekf.updateRestBias(in);
+      }
+      ++ig;
+    }
+    if (ts == t) {
+      ekf.updateSun(log.sun->values.row(is).head<2>().transpose(), log.config.sun.directionAt(t));
+      ++is;
+    }
+    if (tj == t) {
+      if (options.use_slip) ekf.updateSlip(joints[static_cast<size_t>(ij)], in);
+      if (rest) ekf.updateZeroVelocity(in);
+      // Roll/pitch from gravity once per rest window, at its middle (the rover does not move).
+      while (options.use_rest && gravity_next < seg.rests.size() &&
+             t >= 0.5 * (seg.rests[gravity_next].t_start + seg.rests[gravity_next].t_end)) {
+        if (seg.rests[gravity_next].has_gravity && t <= seg.rests[gravity_next].t_end) {
+          ekf.updateGravity(seg.rests[gravity_next].roll_pitch);
+        }
+        ++gravity_next;
+      }
+      result.trajectory.nodes.push_back(ekf.node(t, in));
+      ++ij;
+    }
+  }
+  result.stats = ekf.stats();
+  return result;
+}
+
+}  // namespace traverse::est

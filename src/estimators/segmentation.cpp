@@ -1,0 +1,271 @@
+#include "traverse/estimators/segmentation.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "traverse/rover/joint_rates.h"
+#include "traverse/rover/rover_geometry.h"
+
+namespace traverse::est {
+namespace {
+
+/// Nickels' transient flag per gyro sample: any axis differs from the mean of the previous
+/// `window` samples by more than the threshold.
+std::vector<unsigned char> gyroTransients(const io::Stream& gyro, const SegmentationOptions& o) {
+  const Eigen::Index n = gyro.size(), c = gyro.values.cols();
+  std::vector<unsigned char> flag(static_cast<size_t>(n), 0);
+  Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(c);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Index m = std::min<Eigen::Index>(k, o.mean_window);
+    if (m > 0) {
+      const Eigen::RowVectorXd mean = sum / static_cast<double>(m);
+      flag[static_cast<size_t>(k)] =
+          (gyro.values.row(k) - mean).cwiseAbs().maxCoeff() > o.gyro_threshold_rad_s;
+    }
+    sum += gyro.values.row(k);
+    if (k >= o.mean_window) sum -= gyro.values.row(k - o.mean_window);
+  }
+  return flag;
+}
+
+/// Index of the sample of `t` nearest to time x.
+Eigen::Index nearest(const Eigen::VectorXd& t, double x) {
+  const double* b = t.data();
+  const double* e = b + t.size();
+  const double* it = std::lower_bound(b, e, x);
+  if (it == e) return t.size() - 1;
+  if (it != b && x - *(it - 1) < *it - x) --it;
+  return it - b;
+}
+
+/// Hysteresis over the activity flags; returns per-sample rest (1) / motion (0), with motion
+/// runs snapped to their first and last active sample.
+std::vector<unsigned char> hysteresis(const std::vector<unsigned char>& active,
+                                      const SegmentationOptions& o) {
+  const size_t n = active.size();
+  std::vector<unsigned char> rest(n, 1);
+  bool moving = false;
+  size_t run_start = 0, last_active = 0;
+  int run = 0;
+  for (size_t k = 0; k < n; ++k) {
+    const bool a = active[k];
+    if (!moving) {
+      run = a ? run + 1 : 0;
+      if (run == 1) run_start = k;
+      if (run >= o.enter_count) {
+        moving = true;
+        for (size_t j = run_start; j <= k; ++j) rest[j] = 0;
+        last_active = k;
+        run = 0;
+      }
+    } else {
+      rest[k] = 0;
+      if (a) {
+        last_active = k, run = 0;
+      } else if (++run >= o.leave_count) {
+        moving = false;
+        for (size_t j = last_active + 1; j <= k; ++j) rest[j] = 1;
+        run = 0;
+      }
+    }
+  }
+  if (moving) {
+    for (size_t j = last_active + 1; j < n; ++j) rest[j] = 1;
+  }
+  return rest;
+}
+
+void restMeasurements(const io::TraverseLog& log, const SegmentationOptions& o, RestWindow& w) {
+  const double a = w.t_start + o.edge_margin_s, b = w.t_end - o.edge_margin_s;
+  const io::Stream& g = log.gyro;
+  const bool three = g.values.cols() == 3;
+  w.bias_axes = {three, three, true};
+  std::vector<Eigen::Index> idx;
+  for (Eigen::Index k = 0; k < g.size(); ++k) {
+    if (g.t[k] >= a && g.t[k] <= b) idx.push_back(k);
+  }
+  w.gyro_samples = static_cast<int>(idx.size());
+  if (idx.size() >= 2) {
+    for (Eigen::Index c = 0; c < g.values.cols(); ++c) {
+      const int axis = three ? static_cast<int>(c) : 2;
+      double s = 0, s2 = 0;
+      for (Eigen::Index k : idx) s += g.values(k, c);
+      const double mean = s / static_cast<double>(idx.size());
+      for (Eigen::Index k : idx) s2 += (g.values(k, c) - mean) * (g.values(k, c) - mean);
+      const double var = s2 / static_cast<double>(idx.size() - 1);
+      w.bias[axis] = mean;
+      // Standard error of the mean, floored by the configured white noise (short windows).
+      w.bias_sigma[axis] =
+          std::sqrt(std::max(var, log.config.gyro.noise_rad_s * log.config.gyro.noise_rad_s) /
+                    static_cast<double>(idx.size()));
+    }
+  }
+  if (log.accel) {
+    const io::Stream& acc = *log.accel;
+    Vec3d sum = Vec3d::Zero();
+    Mat3d sum2 = Mat3d::Zero();
+    int n = 0;
+    for (Eigen::Index k = 0; k < acc.size(); ++k) {
+      if (acc.t[k] < a || acc.t[k] > b) continue;
+      const Vec3d f = acc.values.row(k).transpose();
+      sum += f, sum2 += f * f.transpose(), ++n;
+    }
+    if (n >= 3) {
+      const Vec3d mean = sum / n;
+      Mat3d cov = (sum2 - n * mean * mean.transpose()) / (n - 1);
+      const double floor = log.config.accel.noise_mps2 * log.config.accel.noise_mps2;
+      for (int i = 0; i < 3; ++i) cov(i, i) = std::max(cov(i, i), floor);
+      w.has_gravity = true;
+      w.mean_specific_force = mean;
+      w.roll_pitch = sensors::rollPitchAtRest(mean, cov / n);
+    }
+  }
+  if (log.sun) {
+    const io::Stream& s = *log.sun;
+    Vec2d sum = Vec2d::Zero();
+    int n = 0;
+    for (Eigen::Index k = 0; k < s.size(); ++k) {
+      if (s.t[k] < a || s.t[k] > b || s.values(k, 2) < 0.5) continue;
+      sum += Vec2d(s.values(k, 0), s.values(k, 1)), ++n;
+    }
+    if (n > 0) w.has_sun = true, w.mean_sun = sum / n, w.sun_samples = n;
+  }
+}
+
+/// Nickels' per-axis drift filter run over the whole gyro stream; its state at each window end.
+void driftFilter(const io::TraverseLog& log, const Segmentation& seg,
+                 std::vector<RestWindow>& rests) {
+  const io::Stream& g = log.gyro;
+  const bool three = g.values.cols() == 3;
+  const double q = log.config.gyro.bias_random_walk_rad_s_per_sqrt_s;
+  const double r = std::max(log.config.gyro.noise_rad_s * log.config.gyro.noise_rad_s, 1e-12);
+  Vec3d d = Vec3d::Zero();
+  Vec3d P = Vec3d::Constant(log.config.gyro.initial_bias_sigma_rad_s *
+                            log.config.gyro.initial_bias_sigma_rad_s);
+  size_t w = 0;
+  for (Eigen::Index k = 0; k < g.size(); ++k) {
+    const double dt = k > 0 ? g.t[k] - g.t[k - 1] : 0.0;
+    P.array() += q * q * dt;  // bias random walk (maneuvering: estimate held, uncertainty grows)
+    if (seg.gyro_rest[static_cast<size_t>(k)]) {
+      for (Eigen::Index c = 0; c < g.values.cols(); ++c) {
+        const int axis = three ? static_cast<int>(c) : 2;
+        const double K = P[axis] / (P[axis] + r);
+        d[axis] += K * (g.values(k, c) - d[axis]);
+        P[axis] *= 1.0 - K;
+      }
+    }
+    while (w < rests.size() && (k + 1 == g.size() || g.t[k + 1] > rests[w].t_end)) {
+      rests[w].drift = d, rests[w].drift_sigma = P.cwiseSqrt();
+      ++w;
+    }
+  }
+}
+
+}  // namespace
+
+Eigen::VectorXd wheelSpeeds(const io::TraverseLog& log, int half_window) {
+  const io::Stream& j = log.joints;
+  const Eigen::MatrixXd rates = rover::jointRates(
+      std::span<const double>(j.t.data(), static_cast<size_t>(j.size())), j.values,
+      {half_window > 0 ? half_window : log.config.joints.rate_filter_half_window});
+  Eigen::VectorXd speed = Eigen::VectorXd::Zero(j.size());
+  for (int i = 0; i < rover::kNumWheels; ++i) {
+    speed += log.geometry.wheels[i].radius * rates.col(rover::kPsi1 + i).cwiseAbs();
+  }
+  return speed / rover::kNumWheels;
+}
+
+bool Segmentation::atRest(double t) const {
+  for (const Segment& s : segments) {
+    if (t >= s.t_start && t <= s.t_end) return s.kind == Segment::Kind::kRest;
+  }
+  return false;
+}
+
+/// Moves the end of every motion run back to its last raw-active sample: a rate away from the
+/// previous rest's bias, or turning wheels. Nickels' running mean keeps flagging transients for
+/// up to `mean_window` samples after a turn stops (new samples differ from the old mean), which
+/// would otherwise leak into the next rest window.
+void snapMotionEnds(const io::Stream& g, const std::vector<unsigned char>& wheels_active,
+                    const SegmentationOptions& o, std::vector<unsigned char>& rest) {
+  const auto n = static_cast<Eigen::Index>(rest.size());
+  Eigen::RowVectorXd bias = Eigen::RowVectorXd::Zero(g.values.cols()), sum = bias;
+  long count = 0;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    if (rest[static_cast<size_t>(k)]) {
+      sum += g.values.row(k), ++count;
+      continue;
+    }
+    if (count > 0) bias = sum / static_cast<double>(count);
+    sum.setZero(), count = 0;
+    Eigen::Index e = k;
+    while (e + 1 < n && !rest[static_cast<size_t>(e + 1)]) ++e;
+    // Raw activity on a 3-sample average, so a single noisy sample does not hold the run open.
+    auto raw_active = [&](Eigen::Index j) {
+      if (wheels_active[static_cast<size_t>(j)]) return true;
+      const Eigen::Index a = std::max<Eigen::Index>(j - 1, 0),
+                         b = std::min<Eigen::Index>(j + 1, n - 1);
+      const Eigen::RowVectorXd mean = g.values.middleRows(a, b - a + 1).colwise().mean();
+      return (mean - bias).cwiseAbs().maxCoeff() > o.gyro_threshold_rad_s;
+    };
+    Eigen::Index last = e;
+    while (last > k && !raw_active(last)) --last;
+    for (Eigen::Index j = last + 1; j <= e; ++j) rest[static_cast<size_t>(j)] = 1;
+    k = e;
+  }
+}
+
+Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
+  Segmentation seg;
+  const io::Stream& g = log.gyro;
+  seg.gyro_t = g.t;
+  std::vector<unsigned char> active = gyroTransients(g, o);
+  // Wheel activity with the shortest differencing (±1 sample): the smoothing filter's window
+  // would smear a stop over its width.
+  const Eigen::VectorXd speed = wheelSpeeds(log, 1);
+  std::vector<unsigned char> wheels(active.size(), 0);
+  for (Eigen::Index k = 0; k < g.size(); ++k) {
+    if (speed[nearest(log.joints.t, g.t[k])] > o.wheel_speed_threshold_mps) {
+      active[static_cast<size_t>(k)] = 1, wheels[static_cast<size_t>(k)] = 1;
+    }
+  }
+  seg.gyro_rest = hysteresis(active, o);
+  snapMotionEnds(g, wheels, o, seg.gyro_rest);
+  // Runs of equal mode → segments; short rests are merged into the motion around them.
+  const auto n = static_cast<size_t>(g.size());
+  for (size_t k = 0; k < n;) {
+    size_t e = k;
+    while (e + 1 < n && seg.gyro_rest[e + 1] == seg.gyro_rest[k]) ++e;
+    const bool rest = seg.gyro_rest[k];
+    const double t0 =
+        k == 0 ? g.t[0]
+               : 0.5 * (g.t[static_cast<Eigen::Index>(k) - 1] + g.t[static_cast<Eigen::Index>(k)]);
+    const double t1 =
+        e + 1 == n
+            ? g.t[g.size() - 1]
+            : 0.5 * (g.t[static_cast<Eigen::Index>(e)] + g.t[static_cast<Eigen::Index>(e) + 1]);
+    const bool short_rest = rest && (t1 - t0) < o.min_rest_s && k > 0 && e + 1 < n;
+    if (short_rest)
+      std::fill(seg.gyro_rest.begin() + static_cast<long>(k),
+                seg.gyro_rest.begin() + static_cast<long>(e) + 1, 0);
+    const Segment::Kind kind = rest && !short_rest ? Segment::Kind::kRest : Segment::Kind::kMotion;
+    if (!seg.segments.empty() && seg.segments.back().kind == kind) {
+      seg.segments.back().t_end = t1;
+    } else {
+      seg.segments.push_back({kind, t0, t1, -1});
+    }
+    k = e + 1;
+  }
+  for (Segment& s : seg.segments) {
+    if (s.kind != Segment::Kind::kRest) continue;
+    RestWindow w;
+    w.t_start = s.t_start, w.t_end = s.t_end;
+    restMeasurements(log, o, w);
+    s.rest_index = static_cast<int>(seg.rests.size());
+    seg.rests.push_back(w);
+  }
+  driftFilter(log, seg, seg.rests);
+  return seg;
+}
+
+}  // namespace traverse::est

@@ -1,0 +1,39 @@
+#include "traverse/estimators/segments_output.h"
+
+#include <charconv>
+#include <fstream>
+
+namespace traverse::est {
+
+void writeSegments(const std::filesystem::path& file, const std::vector<SegmentRow>& rows) {
+  std::string text =
+      "segment,t_start,t_end,kind,bias_x,bias_y,bias_z,sigma_bias_x,sigma_bias_y,sigma_bias_z,"
+      "status,iterations,"
+      "final_cost,solve_seconds\n";
+  char buf[32];
+  auto num = [&](double v) { text.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr); };
+  for (const SegmentRow& r : rows) {
+    text += std::to_string(r.segment) + ",";
+    num(r.t_start), text += ",";
+    num(r.t_end), text += ",";
+    text += r.kind == Segment::Kind::kRest ? "rest," : "motion,";
+    for (int i = 0; i < 3; ++i) num(r.bias[i]), text += ",";
+    for (int i = 0; i < 3; ++i) num(r.sigma_bias[i]), text += ",";
+    text += r.status + ",";
+    if (r.iterations) text += std::to_string(*r.iterations);
+    text += ",";
+    if (r.final_cost) num(*r.final_cost);
+    text += ",";
+    if (r.solve_seconds) num(*r.solve_seconds);
+    text += "\n";
+  }
+  const std::filesystem::path tmp = file.string() + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    f << text;
+    if (!f) throw std::runtime_error("cannot write " + tmp.string());
+  }
+  std::filesystem::rename(tmp, file);
+}
+
+}  // namespace traverse::est

@@ -1,0 +1,117 @@
+#include "traverse/estimators/trajectory.h"
+
+#include <charconv>
+#include <fstream>
+
+#include "traverse/io/csv.h"
+#include "traverse/io/log_writer.h"
+
+namespace traverse::est {
+namespace {
+
+std::vector<std::string> columns(bool with_cov) {
+  std::vector<std::string> c = {"x",  "y",  "z",  "qw", "qx", "qy", "qz",
+                                "vx", "vy", "vz", "wx", "wy", "wz"};
+  for (int i = 1; i <= kNumWheels; ++i) c.push_back("xi" + std::to_string(i));
+  for (const char* s : {"bx", "by", "bz"}) c.emplace_back(s);
+  if (with_cov) {
+    for (const char* s :
+         {"sx", "sy", "sz", "sroll", "spitch", "syaw", "cxy", "cxz", "cyz", "crp", "cry", "cpy"}) {
+      c.emplace_back(s);
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+io::Stream toStream(const Trajectory& tr) {
+  io::Stream s;
+  s.columns = columns(tr.has_covariance);
+  const auto n = static_cast<Eigen::Index>(tr.nodes.size());
+  s.t.resize(n);
+  s.values.resize(n, static_cast<Eigen::Index>(s.columns.size()));
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const TrajectoryNode& nd = tr.nodes[static_cast<size_t>(k)];
+    s.t[k] = nd.t;
+    auto row = s.values.row(k);
+    row.head<3>() = nd.p_site.transpose();
+    row.segment<4>(3) << nd.q_site_body.w(), nd.q_site_body.x(), nd.q_site_body.y(),
+        nd.q_site_body.z();
+    row.segment<3>(7) = nd.v_body.transpose();
+    row.segment<3>(10) = nd.w_body.transpose();
+    for (int i = 0; i < kNumWheels; ++i) row[13 + i] = nd.xi[static_cast<size_t>(i)];
+    row.segment<3>(19) = nd.bias.transpose();
+    if (tr.has_covariance) {
+      const Mat6d& C = nd.covariance;
+      for (int i = 0; i < 6; ++i) row[22 + i] = std::sqrt(std::max(0.0, C(i, i)));
+      row.segment<6>(28) << C(0, 1), C(0, 2), C(1, 2), C(3, 4), C(3, 5), C(4, 5);
+    }
+  }
+  return s;
+}
+
+Trajectory fromStream(const io::Stream& s, const std::string& name) {
+  Trajectory tr;
+  tr.name = name;
+  tr.has_covariance = s.has("sx");
+  const auto expected = columns(tr.has_covariance);
+  for (size_t c = 0; c < expected.size() && c < s.columns.size(); ++c) {
+    if (s.columns[c] != expected[c])
+      throw std::invalid_argument(name + ": unexpected column " + s.columns[c]);
+  }
+  tr.nodes.resize(static_cast<size_t>(s.size()));
+  for (Eigen::Index k = 0; k < s.size(); ++k) {
+    TrajectoryNode& nd = tr.nodes[static_cast<size_t>(k)];
+    const auto row = s.values.row(k);
+    nd.t = s.t[k];
+    nd.p_site = row.head<3>().transpose();
+    nd.q_site_body = Quatd(row[3], row[4], row[5], row[6]).normalized();
+    nd.v_body = row.segment<3>(7).transpose();
+    nd.w_body = row.segment<3>(10).transpose();
+    for (int i = 0; i < kNumWheels; ++i) nd.xi[static_cast<size_t>(i)] = row[13 + i];
+    nd.bias = row.segment<3>(19).transpose();
+    if (tr.has_covariance) {
+      Mat6d& C = nd.covariance;
+      C.setZero();
+      for (int i = 0; i < 6; ++i) C(i, i) = row[22 + i] * row[22 + i];
+      if (s.has("cxy")) {
+        C(0, 1) = C(1, 0) = row[28], C(0, 2) = C(2, 0) = row[29], C(1, 2) = C(2, 1) = row[30];
+        C(3, 4) = C(4, 3) = row[31], C(3, 5) = C(5, 3) = row[32], C(4, 5) = C(5, 4) = row[33];
+      }
+    }
+  }
+  return tr;
+}
+
+void writeTrajectory(const std::filesystem::path& dir, const Trajectory& tr) {
+  std::filesystem::create_directories(dir);
+  io::writeStream(dir / (tr.name + ".csv"), toStream(tr));
+  // TUM: t tx ty tz qx qy qz qw, space separated, shortest round-trip numbers.
+  std::string text = "# t tx ty tz qx qy qz qw\n";
+  char buf[32];
+  auto put = [&](double v, char sep) {
+    text.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+    text.push_back(sep);
+  };
+  for (const TrajectoryNode& nd : tr.nodes) {
+    const Quatd& q = nd.q_site_body;
+    for (double v : {nd.t, nd.p_site.x(), nd.p_site.y(), nd.p_site.z(), q.x(), q.y(), q.z()})
+      put(v, ' ');
+    put(q.w(), '\n');
+  }
+  const auto file = dir / (tr.name + ".tum");
+  const auto tmp = std::filesystem::path(file.string() + ".tmp");
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    f << text;
+    if (!f) throw std::runtime_error("cannot write " + tmp.string());
+  }
+  std::filesystem::rename(tmp, file);
+}
+
+Trajectory readTrajectory(const std::filesystem::path& dir, const std::string& name) {
+  return fromStream(io::readCsv(dir / (name + ".csv"), io::StreamSpec{}), name);
+}
+
+}  // namespace traverse::est
