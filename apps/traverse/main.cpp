@@ -31,7 +31,8 @@ int main(int argc, char** argv) {
   app.fallthrough();  // global flags (--quiet) also after the subcommand
   std::vector<app::Command> commands = {
       app::addInfoCommand(app, global), app::addEvaluateCommand(app, global),
-      app::addSimulateCommand(app, global), app::addFilterCommand(app, global)};
+      app::addSimulateCommand(app, global), app::addFilterCommand(app, global),
+      app::addBenchCommand(app, global)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

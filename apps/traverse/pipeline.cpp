@@ -2,6 +2,7 @@
 
 #include <iostream>
 
+#include "traverse/eval/metrics.h"
 #include "traverse/io/log_reader.h"
 
 namespace traverse::app {
@@ -56,6 +57,14 @@ est::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global
   est::writeTrajectory(o.out_dir, e.dr);
   est::writeTrajectory(o.out_dir, e.ekf.trajectory);
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
+  if (log.truth) {  // evaluation when the log has truth (outputs.md)
+    const eval::TruthTrajectory truth(*log.truth);
+    const auto name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
+    const eval::MetricsReport report =
+        eval::evaluateAll(name.empty() ? o.log_dir : name, {e.dr, e.ekf.trajectory}, truth);
+    eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
+    if (!global.quiet) std::cout << eval::formatMetricsTable(report);
+  }
   if (!global.quiet) {
     const est::EkfStats& s = e.ekf.stats;
     std::cout << "segments: " << e.segmentation.segments.size() << " ("
@@ -65,7 +74,8 @@ est::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global
               << " (" << s.sun_rejected << " gated out), zero-velocity " << s.zero_velocity_updates
               << ", zero-rate " << s.zero_rate_updates << ", bias " << s.bias_updates
               << ", gravity " << s.gravity_updates << ", gyro " << s.gyro_updates << "\n"
-              << "wrote " << o.out_dir << "/{dr,ekf}.{csv,tum}, segments.csv\n";
+              << "wrote " << o.out_dir << "/{dr,ekf}.{csv,tum}, segments.csv"
+              << (log.truth ? ", metrics.json" : "") << "\n";
   }
   return e;
 }

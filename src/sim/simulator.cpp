@@ -81,8 +81,10 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
                                     const Terrain& terrain, const std::vector<PathSample>& path,
                                     SlipProcess& slip) {
   const ContactSolver solver(geo, terrain);
+  const double ground_height = solver.bodyHeightAboveGround();
   std::vector<TruthSample> truth(path.size());
   ContactState state;
+  Vec2d body_xy = Vec2d::Zero();
   Vec2d lateral_offset = Vec2d::Zero();
   const double dt = 1.0 / sc.truth_rate_hz;
   for (size_t k = 0; k < path.size(); ++k) {
@@ -94,13 +96,26 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
     const auto long_slip = slip.step(p.progress, step);
     std::copy(long_slip.begin(), long_slip.end(), s.slip_longitudinal_mps.begin());
     lateral_offset += slip.lateral(p.progress) * dt * Vec2d(-std::sin(p.yaw), std::cos(p.yaw));
-    const Vec2d body_xy =
-        p.centre + lateral_offset - geo.turn_centre_x * Vec2d(std::cos(p.yaw), std::sin(p.yaw));
+    // The path is that of the ground point below the turn centre, (x_c, 0, −h) in the body, h the
+    // body origin's height above the ground at zero joint angles: a rover rolling or pitching
+    // about a point between its contacts does not drag its wheels sideways or back, as one
+    // pivoting about a point 0.19 m up would. The body origin follows by fixed-point iteration
+    // with the contact solution (the offset depends on roll and pitch).
+    const Vec2d ref = p.centre + lateral_offset;
     const bool same = k > 0 && !p.moving && path[k - 1].centre == p.centre &&
                       path[k - 1].yaw == p.yaw && path[k - 1].steering == p.steering &&
                       !path[k - 1].moving;
+    // At rest (same reference pose) keep the previous solution, body position included.
+    if (k == 0) body_xy = ref - geo.turn_centre_x * Vec2d(std::cos(p.yaw), std::sin(p.yaw));
     if (k == 0) state = solver.initialGuess(body_xy.x(), body_xy.y(), p.yaw);
-    if (!same) state = solver.solve(body_xy.x(), body_xy.y(), p.yaw, p.steering, state);
+    for (int it = 0; it < 4 && !same; ++it) {
+      const Mat3d R = so3::fromRollPitchYaw(state.roll, state.pitch, p.yaw).toRotationMatrix();
+      const Vec2d next = ref - (R * Vec3d(geo.turn_centre_x, 0.0, -ground_height)).head<2>();
+      const bool converged = it > 0 && (next - body_xy).norm() < 1e-10;
+      body_xy = next;
+      state = solver.solve(body_xy.x(), body_xy.y(), p.yaw, p.steering, state);
+      if (converged) break;
+    }
     const Posed pose = ContactSolver::bodyPose(body_xy.x(), body_xy.y(), p.yaw, state);
     s.p_site = pose.p;
     s.q_site_body = Quatd(pose.R).normalized();

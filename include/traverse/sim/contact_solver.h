@@ -61,6 +61,9 @@ class ContactSolver {
                                                          const Vec2d& steering,
                                                          const ContactState& state) const;
 
+  /// Height of the body origin above flat ground at zero joint angles (m).
+  double bodyHeightAboveGround() const { return centre_height_; }
+
   /// Site pose of the body for a state.
   static Posed bodyPose(double x, double y, double yaw, const ContactState& s);
 

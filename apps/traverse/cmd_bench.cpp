@@ -1,0 +1,100 @@
+// `traverse bench accuracy --scenario S --runs N [--json FILE]`: Monte Carlo over seeds 1..N —
+// simulate, estimate, evaluate — then mean, std, median and max of every metric.
+#include <atomic>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "commands.h"
+#include "pipeline.h"
+#include "traverse/core/error.h"
+#include "traverse/eval/aggregate.h"
+#include "traverse/eval/metrics.h"
+#include "traverse/sim/simulator.h"
+
+namespace traverse::app {
+namespace {
+
+struct BenchOptions {
+  std::string scenario;
+  long runs = 20;
+  std::string json;
+  std::vector<std::string> overrides;
+  int jobs = 0;
+  PipelineOptions pipeline;
+};
+
+eval::MetricsReport oneRun(const sim::Scenario& sc, const std::filesystem::path& rover_dir,
+                           uint64_t seed, const est::PipelineConfig& config) {
+  const sim::Simulation s = sim::simulate(sc, rover_dir, seed);
+  const est::Estimates e = est::estimate(s.log, config);
+  return eval::evaluateAll(sc.name + "#" + std::to_string(seed), {e.dr, e.ekf.trajectory},
+                           eval::TruthTrajectory(*s.log.truth));
+}
+
+}  // namespace
+
+Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
+  auto opt = std::make_shared<BenchOptions>();
+  CLI::App* bench = app.add_subcommand("bench", "Benchmarks");
+  bench->require_subcommand(1);
+  CLI::App* cmd = bench->add_subcommand(
+      "accuracy", "Monte Carlo accuracy over seeds 1..N: simulate, estimate, evaluate");
+  cmd->add_option("--scenario", opt->scenario, "Scenario name or YAML file")->required();
+  cmd->add_option("--runs", opt->runs, "Number of seeds (1..N)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--json", opt->json, "Write the statistics as JSON (outputs.md)");
+  cmd->add_option("--set", opt->overrides,
+                  "Override a scenario key: dotted.key=value (repeatable)");
+  cmd->add_option("-j,--jobs", opt->jobs, "Parallel runs (default: all cores)");
+  cmd->add_option("--attitude-model", opt->pipeline.attitude_model,
+                  "gyro-driven or gyro-measurement")
+      ->check(CLI::IsMember({"gyro-driven", "gyro-measurement"}));
+  cmd->add_option("--velocity-model", opt->pipeline.velocity_model, "perturbation or accel")
+      ->check(CLI::IsMember({"perturbation", "accel"}));
+  cmd->add_flag("--no-sun", opt->pipeline.no_sun, "EKF without the sun sensor");
+  cmd->add_flag("--no-slip", opt->pipeline.no_slip, "EKF without the slip constraint");
+  return [cmd, opt, &global]() {
+    if (!*cmd) return -1;
+    const std::filesystem::path data = datasetsDir();
+    const sim::Scenario sc = sim::loadScenario(opt->scenario, data, opt->overrides);
+    std::filesystem::path rover_dir(sc.rover);
+    if (!std::filesystem::exists(rover_dir / "rover.yaml")) rover_dir = data / "rovers" / sc.rover;
+    const est::PipelineConfig config = pipelineConfig(opt->pipeline);
+    std::vector<eval::MetricsReport> reports(static_cast<size_t>(opt->runs));
+    std::atomic<long> next{0}, done{0};
+    std::mutex err_mutex;
+    std::exception_ptr error;
+    const int jobs = opt->jobs > 0
+                         ? opt->jobs
+                         : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> pool;
+    for (int j = 0; j < jobs; ++j) {
+      pool.emplace_back([&] {
+        for (long k; (k = next++) < opt->runs;) {
+          try {
+            reports[static_cast<size_t>(k)] =
+                oneRun(sc, rover_dir, static_cast<uint64_t>(k + 1), config);
+          } catch (...) {
+            std::lock_guard<std::mutex> lock(err_mutex);
+            if (!error) error = std::current_exception();
+          }
+          const long d = ++done;
+          if (!global.quiet)
+            std::cerr << "\r" << sc.name << ": run " << d << "/" << opt->runs << std::flush;
+        }
+      });
+    }
+    for (auto& t : pool) t.join();
+    if (!global.quiet) std::cerr << "\n";
+    if (error) std::rethrow_exception(error);
+    const eval::AccuracyReport report = eval::aggregate(sc.name, reports);
+    if (!opt->json.empty()) eval::writeAccuracyJson(opt->json, report);
+    if (!global.quiet) std::cout << eval::formatAccuracyTable(report);
+    return 0;
+  };
+}
+
+}  // namespace traverse::app
