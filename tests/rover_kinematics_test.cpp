@@ -263,3 +263,32 @@ TEST(JointRates, SmoothsNoiseByTheDocumentedGain) {
 
 }  // namespace
 }  // namespace traverse::rover
+
+namespace traverse::rover {
+namespace {
+
+// The EKF's analytic K-17 Jacobian equals the Jet derivative of the templated model.
+TEST(SlipConstraint, AnalyticJacobianMatchesJets) {
+  const RoverGeometry& geo = rocky7();
+  std::mt19937 rng(17);
+  for (int trial = 0; trial < 60; ++trial) {
+    const auto kin = forwardKinematics<double>(geo, randomSuspension(rng));
+    const int i = trial % kNumWheels;
+    const Twistd jt = wheelJointTwist(kin[i], randomVector<kNumCoords>(rng, 1.0));
+    Eigen::Matrix<double, 7, 1> x;
+    x << randomVector<3>(rng, 0.2), randomVector<3>(rng, 0.5), randomVector<1>(rng, 0.6);
+    const auto f = [&](const auto& s) {
+      using T = typename std::decay_t<decltype(s)>::Scalar;
+      return slipConstraint<T>(kin[i].T_body_wheel, geo.wheels[i].radius, jt, Vec3<T>(s.template head<3>()),
+                               Vec3<T>(s.template segment<3>(3)), s[6]);
+    };
+    Eigen::Matrix<double, 4, 7> J;
+    const Vec4d t = slipConstraintWithJacobian(kin[i].T_body_wheel, geo.wheels[i].radius, jt, x.head<3>(),
+                                               x.segment<3>(3), x[6], &J);
+    EXPECT_LT((t - f(x)).norm(), 1e-14);
+    EXPECT_LT((J - testing::autodiffJacobian<4, 7>(f, x)).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
+}  // namespace
+}  // namespace traverse::rover

@@ -42,7 +42,11 @@ Trajectory deadReckoning(const io::TraverseLog& log, const Segmentation& seg,
   tr.nodes.resize(static_cast<size_t>(j.size()));
   const Vec3d rpy0 = so3::rollPitchYaw(init.q_site_body);
   double yaw = rpy0.z();
-  Vec3d p = init.p_site;
+  // Integrate the turn-centre point (body x = x_c): in Ackermann motion and turns in place its
+  // velocity is along the heading; the body origin, x_c behind or ahead of it, is not.
+  const double xc = log.geometry.turn_centre_x;
+  auto offset = [&](double y) { return Vec3d(xc * std::cos(y), xc * std::sin(y), 0.0); };
+  Vec3d p = init.p_site + offset(yaw);
   double prev_speed = 0.0, prev_rate = 0.0;
   for (Eigen::Index k = 0; k < j.size(); ++k) {
     const double t = j.t[k];
@@ -67,9 +71,9 @@ Trajectory deadReckoning(const io::TraverseLog& log, const Segmentation& seg,
     prev_speed = speed, prev_rate = rate;
     TrajectoryNode& n = tr.nodes[static_cast<size_t>(k)];
     n.t = t;
-    n.p_site = p;
+    n.p_site = p - offset(yaw);
     n.q_site_body = so3::fromRollPitchYaw(roll, pitch, yaw);
-    n.v_body = Vec3d(speed, 0, 0);
+    n.v_body = Vec3d(speed, -rate * xc, 0);
     n.w_body = Vec3d(0, 0, rate);
     n.bias = Vec3d(0, 0, bias);
   }

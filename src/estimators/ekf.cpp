@@ -5,6 +5,7 @@
 #include <limits>
 
 #include <ceres/jet.h>
+#include <Eigen/LU>
 
 #include "traverse/rover/joint_rates.h"
 #include "traverse/rover/nominal_slip.h"
@@ -17,25 +18,27 @@ namespace {
 
 using I = EkfIndex;
 
-/// Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1.2e-9).
-double normalQuantile(double p) {
-  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02,  -2.759285104469687e+02,
-                             1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
-  static const double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
-                             6.680131188771972e+01, -1.328068155288572e+01};
-  static const double c[] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
-                             -2.549732539343734e+00, 4.374664141464968e+00,  2.938163982698783e+00};
-  static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
-                             3.754408661907416e+00};
-  if (p < 0.02425) {
-    const double q = std::sqrt(-2 * std::log(p));
-    return (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
-           ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
+/// Regularized lower incomplete gamma P(a, x): series below a + 1, Lentz continued fraction
+/// above (Numerical Recipes §6.2).
+double gammaP(double a, double x) {
+  if (x <= 0) return 0.0;
+  const double log_prefix = a * std::log(x) - x - std::lgamma(a);
+  if (x < a + 1) {
+    double term = 1.0 / a, sum = term;
+    for (int n = 1; n < 500 && std::abs(term) > 1e-16 * std::abs(sum); ++n)
+      term *= x / (a + n), sum += term;
+    return sum * std::exp(log_prefix);
   }
-  if (p > 1 - 0.02425) return -normalQuantile(1 - p);
-  const double q = p - 0.5, r = q * q;
-  return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
-         (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1);
+  double b = x + 1 - a, c = 1e300, d = 1.0 / b, h = d;
+  for (int i = 1; i < 500; ++i) {
+    const double an = -i * (i - a);
+    b += 2;
+    d = an * d + b, d = std::abs(d) < 1e-300 ? 1e-300 : d, d = 1.0 / d;
+    c = b + an / c, c = std::abs(c) < 1e-300 ? 1e-300 : c;
+    h *= d * c;
+    if (std::abs(d * c - 1.0) < 1e-16) break;
+  }
+  return 1.0 - std::exp(log_prefix) * h;
 }
 
 template <int N>
@@ -57,9 +60,13 @@ void jacobian(const F& f, const Eigen::Matrix<double, N, 1>& x, Eigen::Matrix<do
 }  // namespace
 
 double chiSquareQuantile(double probability, int dof) {
-  const double k = dof, z = normalQuantile(probability);
-  const double h = 1.0 - 2.0 / (9.0 * k) + z * std::sqrt(2.0 / (9.0 * k));
-  return k * h * h * h;
+  // χ²_k CDF is P(k/2, x/2); bisection on it (monotone) to 1e-12 relative.
+  double lo = 0.0, hi = 10.0 * dof + 100.0;
+  for (int it = 0; it < 200 && hi - lo > 1e-12 * hi; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (gammaP(0.5 * dof, 0.5 * mid) < probability ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
 }
 
 Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
@@ -167,11 +174,39 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   qc.segment<6>(I::kXi).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
   qc.segment<3>(I::kBias).setConstant(std::pow(config_.gyro.bias_random_walk_rad_s_per_sqrt_s, 2));
 
-  const EkfMatrix Fdt = F * dt;
-  const EkfMatrix Phi = EkfMatrix::Identity() + Fdt + 0.5 * Fdt * Fdt;
-  const EkfMatrix Qd =
-      0.5 * (Phi * qc.asDiagonal() * Phi.transpose() + EkfMatrix(qc.asDiagonal())) * dt;
-  P_ = Phi * P_ * Phi.transpose() + Qd;
+  // Φ = I + A, A = F dt + ½ (F dt)²; F has ~50 nonzeros of 441, so A P and A (A P)ᵀ are
+  // computed over A's nonzero entries: Φ P Φᵀ = P + A P + (A P)ᵀ + A (A P)ᵀ.
+  struct Entry {
+    int i, j;
+    double v;
+  };
+  std::array<Entry, kEkfStates * kEkfStates> nz;
+  int n_nz = 0;
+  for (int j = 0; j < kEkfStates; ++j) {
+    for (int i = 0; i < kEkfStates; ++i) {
+      if (F(i, j) != 0.0) nz[n_nz++] = {i, j, F(i, j) * dt};
+    }
+  }
+  EkfMatrix A = EkfMatrix::Zero();  // F dt + ½ (F dt)², the square over the nonzeros
+  for (int a = 0; a < n_nz; ++a) {
+    A(nz[a].i, nz[a].j) += nz[a].v;
+    for (int b = 0; b < n_nz; ++b) {
+      if (nz[b].i == nz[a].j) A(nz[a].i, nz[b].j) += 0.5 * nz[a].v * nz[b].v;
+    }
+  }
+  n_nz = 0;
+  for (int j = 0; j < kEkfStates; ++j) {
+    for (int i = 0; i < kEkfStates; ++i) {
+      if (A(i, j) != 0.0) nz[n_nz++] = {i, j, A(i, j)};
+    }
+  }
+  // Column operations only (Eigen is column-major): B = P Aᵀ, D = Bᵀ = A P, E = D Aᵀ = A P Aᵀ.
+  EkfMatrix B = EkfMatrix::Zero(), E = EkfMatrix::Zero();
+  for (int a = 0; a < n_nz; ++a) B.col(nz[a].i).noalias() += nz[a].v * P_.col(nz[a].j);
+  const EkfMatrix D = B.transpose();
+  for (int a = 0; a < n_nz; ++a) E.col(nz[a].i).noalias() += nz[a].v * D.col(nz[a].j);
+  P_ += D + B + E;
+  P_.diagonal() += qc * dt;  // white process noise over dt (first order)
   P_ = 0.5 * (P_ + P_.transpose());
 
   // Nominal state (midpoint rule).
@@ -188,14 +223,36 @@ template <int M>
 bool Ekf::update(const Eigen::Matrix<double, M, 1>& r,
                  const Eigen::Matrix<double, M, kEkfStates>& H,
                  const Eigen::Matrix<double, M, M>& R, double gate) {
-  const Eigen::Matrix<double, kEkfStates, M> PHt = P_ * H.transpose();
-  const Eigen::Matrix<double, M, M> S = H * PHt + R;
-  const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(S);
-  if (llt.info() != Eigen::Success) return false;
-  if (gate > 0 && r.dot(llt.solve(r)) > gate) return false;
-  const Eigen::Matrix<double, kEkfStates, M> K = llt.solve(PHt.transpose()).transpose();
-  const EkfMatrix IKH = EkfMatrix::Identity() - K * H;
-  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();  // Joseph form
+  // P Hᵀ over H's nonzero columns only (a slip row touches 8 of 21 states).
+  int cols[kEkfStates];
+  int n = 0;
+  for (int c = 0; c < kEkfStates; ++c) {
+    if (!H.col(c).isZero(0.0)) cols[n++] = c;
+  }
+  Eigen::Matrix<double, kEkfStates, M> PHt = Eigen::Matrix<double, kEkfStates, M>::Zero();
+  for (int j = 0; j < n; ++j) PHt.noalias() += P_.col(cols[j]) * H.col(cols[j]).transpose();
+  Eigen::Matrix<double, M, M> S = R;
+  for (int j = 0; j < n; ++j) S.noalias() += H.col(cols[j]) * PHt.row(cols[j]);
+  // S is M×M with M ≤ 4: LLT checks it is positive definite, Eigen's closed-form inverse gives
+  // the gain (a determinant threshold would reject the small, well-conditioned S of slip rows).
+  if (Eigen::LLT<Eigen::Matrix<double, M, M>>(S).info() != Eigen::Success) return false;
+  const Eigen::Matrix<double, M, M> S_inv = S.inverse();
+  if (gate > 0 && r.dot(S_inv * r) > gate) return false;
+  const Eigen::Matrix<double, kEkfStates, M> K = PHt * S_inv;
+  // Joseph form, expanded: (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ
+  // (valid for any gain K; HP = (P Hᵀ)ᵀ), at rank-M cost instead of two 21×21×21 products.
+  // Joseph form, expanded: (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ (valid
+  // for any gain; HP = (P Hᵀ)ᵀ) — rank-M products instead of two 21×21×21 ones. lazyProduct keeps
+  // Eigen on its coefficient-wise kernel: the packed GEMM path costs more than it saves here.
+  // Evaluated on the lower triangle (P stays exactly symmetric) with contiguous M-vectors.
+  const Eigen::Matrix<double, M, kEkfStates> Kt = K.transpose(), HP = PHt.transpose();
+  const Eigen::Matrix<double, M, kEkfStates> SKt = S * Kt;
+  for (int j = 0; j < kEkfStates; ++j) {
+    for (int i = j; i < kEkfStates; ++i) {
+      P_(i, j) += Kt.col(i).dot(SKt.col(j)) - Kt.col(i).dot(HP.col(j)) - HP.col(i).dot(Kt.col(j));
+    }
+  }
+  P_.template triangularView<Eigen::StrictlyUpper>() = P_.transpose();
   absorb(K * r);
   return true;
 }
@@ -234,16 +291,9 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     // Re-linearise at the state the previous wheel's update left (sequential processing).
     Eigen::Matrix<double, 7, 1> s;
     s << v_now(), omega<double>(w_p_, b_, in), xi_[i];
-    Vec4d t;
     Eigen::Matrix<double, 4, 7> J;
-    jacobian<4, 7>(
-        [&](const auto& z) {
-          using T = typename std::decay_t<decltype(z)>::Scalar;
-          return rover::slipConstraint<T>(js.T_body_wheel[i], radius, jt,
-                                          Vec3<T>(z.template head<3>()),
-                                          Vec3<T>(z.template segment<3>(3)), z[6]);
-        },
-        s, &t, &J);
+    const Vec4d t = rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, jt, s.head<3>(),
+                                                      s.segment<3>(3), s[6], &J);
     Eigen::Matrix<double, 4, kEkfStates> H = Eigen::Matrix<double, 4, kEkfStates>::Zero();
     H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
     H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);

@@ -146,7 +146,7 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
 /// differencing, K §3).
 std::vector<JointSample> jointSamples(const io::TraverseLog& log);
 
-/// χ² quantile for `dof` degrees of freedom (Wilson–Hilferty), for gating.
+/// χ² quantile for `dof` degrees of freedom (regularized incomplete gamma), for gating.
 double chiSquareQuantile(double probability, int dof);
 
 }  // namespace traverse::est

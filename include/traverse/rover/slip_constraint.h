@@ -51,3 +51,42 @@ Eigen::Matrix<T, kSlipRows * kNumWheels, 1> slipConstraintAll(
 }
 
 }  // namespace traverse::rover
+
+namespace traverse::rover {
+
+/// K-17 for one wheel with its analytic Jacobian ∂t/∂(v, ω, ξ) (4×7) — the EKF's hot path;
+/// tests check it against the Jet derivative of slipConstraint().
+///   t_{0:3} = R_lᵀ (v + j_v + (ω + j_ω) × p_l),  t_3 = e_zᵀ R_lᵀ (ω + j_ω)
+///   ∂t_{0:3}/∂v = R_lᵀ,  ∂t_{0:3}/∂ω = −R_lᵀ [p_l]×,  ∂t_3/∂ω = e_zᵀ R_lᵀ,
+///   ∂/∂ξ through R_l = R_w R_y(−ξ) and p_l = p_w + r R_w (sin ξ, 0, −cos ξ).
+inline Vec4d slipConstraintWithJacobian(const Posed& T_body_wheel, double radius,
+                                        const Twistd& joint_twist, const Vec3d& v_body,
+                                        const Vec3d& w_body, double xi,
+                                        Eigen::Matrix<double, 4, 7>* J) {
+  const double c = std::cos(xi), s = std::sin(xi);
+  const Mat3d& Rw = T_body_wheel.R;
+  Mat3d Ry;  // R_y(−ξ)
+  Ry << c, 0, -s, 0, 1, 0, s, 0, c;
+  const Mat3d Rl = Rw * Ry;
+  const Vec3d pl = T_body_wheel.p + radius * Rw * Vec3d(s, 0, -c);
+  const Vec3d V = v_body + joint_twist.head<3>();
+  const Vec3d W = w_body + joint_twist.tail<3>();
+  const Vec3d u = V + W.cross(pl);  // velocity of the wheel point at the contact
+  const Mat3d RlT = Rl.transpose();
+  Vec4d t;
+  t.head<3>() = RlT * u;
+  t[3] = RlT.row(2).dot(W);
+  J->setZero();
+  J->block<3, 3>(0, 0) = RlT;
+  J->block<3, 3>(0, 3) = -RlT * so3::skew(pl);
+  J->block<1, 3>(3, 3) = RlT.row(2);
+  Mat3d dRy;  // d R_y(−ξ) / dξ
+  dRy << -s, 0, -c, 0, 0, 0, c, 0, -s;
+  const Mat3d dRlT = (Rw * dRy).transpose();
+  const Vec3d dpl = radius * Rw * Vec3d(c, 0, s);
+  J->block<3, 1>(0, 6) = dRlT * u + RlT * W.cross(dpl);
+  (*J)(3, 6) = dRlT.row(2).dot(W);
+  return t;
+}
+
+}  // namespace traverse::rover

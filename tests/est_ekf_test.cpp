@@ -1,0 +1,130 @@
+// The forward EKF and dead reckoning on simulated traverses with truth.
+#include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
+
+#include "support/jacobian_check.h"
+#include "traverse/estimators/pipeline.h"
+#include "traverse/eval/metrics.h"
+#include "traverse/sim/simulator.h"
+
+namespace traverse::est {
+namespace {
+
+std::filesystem::path datasets() {
+  return std::filesystem::path(testing::sourceDir()) / "datasets";
+}
+
+sim::Simulation simulate(const std::string& scenario, std::vector<std::string> overrides,
+                         uint64_t seed = 1) {
+  return sim::simulate(sim::loadScenario(scenario, datasets(), overrides),
+                       datasets() / "rovers" / "rocky7", seed);
+}
+
+eval::Metrics metrics(const Trajectory& tr, const sim::Simulation& s) {
+  return eval::evaluate(tr, eval::TruthTrajectory(*s.log.truth));
+}
+
+const std::vector<std::string> kNoNoise = {"terrain.type=flat",
+                                           "slip.longitudinal_white_mps=0",
+                                           "sensors.gyro.noise_rad_s=0",
+                                           "sensors.sun.noise=0",
+                                           "sensors.accel.noise_mps2=0",
+                                           "sensors.joints.angle_noise_rad=0",
+                                           "sensors.joints.steering_noise_rad=0",
+                                           "sensors.joints.wheel_quantum_rad=0"};
+
+// Noise-free, flat: the kinematic model is exact, so both estimators reproduce the truth.
+TEST(EstEkf, NoiseFreeFlatTraverseIsReproduced) {
+  const sim::Simulation s = simulate("straight-1m", kNoNoise);
+  const Estimates e = estimate(s.log);
+  const eval::Metrics dr = metrics(e.dr, s), ekf = metrics(e.ekf.trajectory, s);
+  EXPECT_LT(*ekf.get("final_position_error_m"), 1e-3);
+  EXPECT_LT(*ekf.get("yaw_rmse_deg"), 0.01);
+  EXPECT_LT(*dr.get("final_position_error_m"), 1e-3);
+  EXPECT_EQ(e.ekf.stats.slip_rejected, 0);
+  EXPECT_EQ(e.ekf.stats.sun_rejected, 0);
+}
+
+// Sequential processing: every stream's samples are used, and the rest updates happen.
+TEST(EstEkf, ProcessesEveryStream) {
+  const sim::Simulation s = simulate("straight-1m", {});
+  const Estimates e = estimate(s.log);
+  EXPECT_EQ(e.ekf.trajectory.nodes.size(), static_cast<size_t>(s.log.joints.size()));
+  EXPECT_EQ(e.ekf.stats.slip_updates, 6 * s.log.joints.size());
+  EXPECT_EQ(e.ekf.stats.sun_updates, s.log.sun->size());
+  EXPECT_GT(e.ekf.stats.zero_velocity_updates, 0);
+  EXPECT_GT(e.ekf.stats.bias_updates, 0);
+  EXPECT_EQ(e.ekf.stats.gravity_updates, 2);
+  for (size_t k = 1; k < e.ekf.trajectory.nodes.size(); ++k) {
+    const Mat6d& C = e.ekf.trajectory.nodes[k].covariance;
+    EXPECT_LT((C - C.transpose()).norm(), 1e-15);
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Mat6d>(C).eigenvalues().minCoeff(), 0.0);
+  }
+}
+
+// straight-1m (K §4.1.1): the kinematic EKF beats averaged-wheel odometry on distance.
+TEST(EstEkf, Straight1mEkfBeatsDeadReckoning) {
+  const sim::Simulation s = simulate("straight-1m", {});
+  const Estimates e = estimate(s.log);
+  const eval::Metrics dr = metrics(e.dr, s), ekf = metrics(e.ekf.trajectory, s);
+  EXPECT_LT(*ekf.get("distance_error_pct"), 0.36);
+  EXPECT_LT(*ekf.get("distance_error_pct"), *dr.get("distance_error_pct"));
+  EXPECT_LT(*ekf.get("max_cross_track_m"), 0.014);
+}
+
+// A gyro bias jump is seen: bias tracked within 3σ at the end of each rest window.
+TEST(EstEkf, TracksGyroBiasThroughRests) {
+  const sim::Simulation s = simulate("straight-1m", {"sensors.gyro.bias_rad_s=[0,0,0.01]"});
+  const Estimates e = estimate(s.log);
+  const TrajectoryNode& last = e.ekf.trajectory.nodes.back();
+  EXPECT_NEAR(last.bias.z(), 0.01, 3 * last.bias_sigma.z());
+  EXPECT_LT(last.bias_sigma.z(), 3e-4);
+}
+
+// The χ² gate rejects a gross sun outlier and counts it.
+TEST(EstEkf, GatesSunOutliers) {
+  sim::Simulation s = simulate("straight-1m", {});
+  s.log.sun->values(40, 0) += 0.3;  // ~17° of a jump in one reading
+  const Estimates gated = estimate(s.log);
+  EXPECT_EQ(gated.ekf.stats.sun_rejected, 1);
+  PipelineConfig no_gate;
+  no_gate.ekf.gating = false;
+  EXPECT_EQ(estimate(s.log, no_gate).ekf.stats.sun_rejected, 0);
+}
+
+// The other process models run and stay sensible: K-12 gyro as a measurement, O-4 accelerometer.
+TEST(EstEkf, AlternativeProcessModels) {
+  const sim::Simulation s = simulate("straight-1m", {});
+  PipelineConfig k12;
+  k12.ekf.attitude = EkfOptions::AttitudeModel::kGyroMeasurement;
+  const Estimates a = estimate(s.log, k12);
+  EXPECT_GT(a.ekf.stats.gyro_updates, 0);
+  EXPECT_LT(*metrics(a.ekf.trajectory, s).get("final_position_error_m"), 0.03);
+  PipelineConfig o4;
+  o4.ekf.velocity = EkfOptions::VelocityModel::kAccelDriven;
+  EXPECT_LT(*metrics(estimate(s.log, o4).ekf.trajectory, s).get("final_position_error_m"), 0.05);
+}
+
+TEST(EstDeadReckoning, FollowsTheGyroHeadingAndWheelDistance) {
+  const sim::Simulation s =
+      simulate("planar-18m", {"sensors.gyro.noise_rad_s=0", "slip.longitudinal_white_mps=0",
+                              "sensors.joints.steering_noise_rad=0"});
+  const Estimates e = estimate(s.log);
+  const eval::Metrics dr = metrics(e.dr, s);
+  // On flat ground without noise or slip, wheel odometry and gyro heading reconstruct the arc.
+  EXPECT_LT(*dr.get("final_position_error_m"), 0.05);
+  EXPECT_LT(*dr.get("yaw_rmse_deg"), 0.2);
+}
+
+TEST(EstChiSquare, QuantilesMatchTables) {
+  // Standard tables; 2 dof has the closed form −2 ln(1 − p).
+  EXPECT_NEAR(chiSquareQuantile(0.95, 2), -2 * std::log(0.05), 1e-9);
+  EXPECT_NEAR(chiSquareQuantile(0.9999, 2), -2 * std::log(1e-4), 1e-9);
+  EXPECT_NEAR(chiSquareQuantile(0.95, 3), 7.8147, 1e-4);
+  EXPECT_NEAR(chiSquareQuantile(0.999, 4), 18.4668, 1e-4);
+  EXPECT_NEAR(chiSquareQuantile(0.025, 60), 40.4817, 1e-4);
+  EXPECT_NEAR(chiSquareQuantile(0.975, 60), 83.2977, 1e-4);
+}
+
+}  // namespace
+}  // namespace traverse::est
