@@ -1,5 +1,7 @@
 // `traverse bench accuracy --scenario S --runs N [--json FILE]`: Monte Carlo over seeds 1..N —
 // simulate, estimate, evaluate — then mean, std, median and max of every metric.
+#include <unistd.h>
+
 #include <atomic>
 #include <iostream>
 #include <memory>
@@ -52,8 +54,8 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--attitude-model", opt->pipeline.attitude_model,
                   "gyro-driven or gyro-measurement")
       ->check(CLI::IsMember({"gyro-driven", "gyro-measurement"}));
-  cmd->add_option("--velocity-model", opt->pipeline.velocity_model, "perturbation or accel")
-      ->check(CLI::IsMember({"perturbation", "accel"}));
+  cmd->add_option("--velocity-model", opt->pipeline.velocity_model, "auto, perturbation or accel")
+      ->check(CLI::IsMember({"auto", "perturbation", "accel"}));
   cmd->add_flag("--no-sun", opt->pipeline.no_sun, "EKF without the sun sensor");
   cmd->add_flag("--no-slip", opt->pipeline.no_slip, "EKF without the slip constraint");
   return [cmd, opt, &global]() {
@@ -67,6 +69,8 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
     std::atomic<long> next{0}, done{0};
     std::mutex err_mutex;
     std::exception_ptr error;
+    const bool progress =
+        !global.quiet && isatty(STDERR_FILENO);  // a progress line on a terminal only
     const int jobs = opt->jobs > 0
                          ? opt->jobs
                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -88,7 +92,7 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
       });
     }
     for (auto& t : pool) t.join();
-    if (!global.quiet) std::cerr << "\n";
+    if (progress) std::cerr << "\n";
     if (error) std::rethrow_exception(error);
     const eval::AccuracyReport report = eval::aggregate(sc.name, reports);
     if (!opt->json.empty()) eval::writeAccuracyJson(opt->json, report);

@@ -38,8 +38,10 @@ est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   c.ekf.attitude = o.attitude_model == "gyro-measurement"
                        ? est::EkfOptions::AttitudeModel::kGyroMeasurement
                        : est::EkfOptions::AttitudeModel::kGyroDriven;
-  c.ekf.velocity = o.velocity_model == "accel" ? est::EkfOptions::VelocityModel::kAccelDriven
-                                               : est::EkfOptions::VelocityModel::kPerturbation;
+  using VM = est::EkfOptions::VelocityModel;
+  c.ekf.velocity = o.velocity_model == "accel"          ? VM::kAccelDriven
+                   : o.velocity_model == "perturbation" ? VM::kPerturbation
+                                                        : VM::kAuto;
   c.ekf.use_sun = !o.no_sun;
   c.ekf.use_slip = !o.no_slip;
   c.ekf.gating = !o.no_gating;

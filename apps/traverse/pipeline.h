@@ -15,7 +15,7 @@ struct PipelineOptions {
   bool skip_bad_rows = false;
   std::vector<double> initial_position{0.0, 0.0, 0.0};
   std::string attitude_model = "gyro-driven";
-  std::string velocity_model = "perturbation";
+  std::string velocity_model = "auto";
   bool no_sun = false, no_slip = false, no_gating = false, pitch_projection = false;
 };
 

@@ -41,6 +41,8 @@ double gammaP(double a, double x) {
   return 1.0 - std::exp(log_prefix) * h;
 }
 
+double medianPeriod(const io::Stream& s);
+
 template <int N>
 using Jet = ceres::Jet<double, N>;
 
@@ -294,6 +296,17 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     Eigen::Matrix<double, 4, 7> J;
     const Vec4d t = rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, jt, s.head<3>(),
                                                       s.segment<3>(3), s[6], &J);
+    // Joint noise enters the constraint too: the joint twist J q̇ through ∂t/∂[v; ω] (t is linear
+    // in the twist), and a steering-angle error turns the wheel's heading, moving the contact
+    // point's velocity into the transverse row by |v_wheel| δλ.
+    Eigen::Matrix4d Ri = R;
+    Ri.noalias() += J.leftCols<6>() * js.joint_twist_covariance[i] * J.leftCols<6>().transpose();
+    if (js.steering_variance[i] > 0) {
+      const Posed& g = js.T_body_wheel[i];
+      const Vec3d u = g.R.transpose() *
+                      (s.head<3>() + jt.head<3>() + (s.segment<3>(3) + jt.tail<3>()).cross(g.p));
+      Ri(1, 1) += js.steering_variance[i] * (u.x() * u.x() + u.y() * u.y());
+    }
     Eigen::Matrix<double, 4, kEkfStates> H = Eigen::Matrix<double, 4, kEkfStates>::Zero();
     H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
     H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
@@ -301,7 +314,7 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     H.col(I::kXi + i) = J.col(6);
     const Vec4d r = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, jt) - t;
     ++stats_.slip_updates;
-    if (!update<4>(r, H, R, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
+    if (!update<4>(r, H, Ri, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
   }
 }
 
@@ -464,12 +477,31 @@ const RestWindow* restAt(const Segmentation& seg, double t, double margin, size_
 
 std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
   const io::Stream& j = log.joints;
-  const Eigen::MatrixXd rates =
-      rover::jointRates(std::span<const double>(j.t.data(), static_cast<size_t>(j.size())),
-                        j.values, {log.config.joints.rate_filter_half_window});
+  const auto& js = log.config.joints;
+  const int h = js.rate_filter_half_window;
+  const std::span<const double> t(j.t.data(), static_cast<size_t>(j.size()));
+  const double dt = medianPeriod(j);
+  Eigen::MatrixXd angles = j.values;
+  Eigen::MatrixXd rates = rover::jointRates(t, angles, {h});
+  // Steering: a wider window (rover.yaml steering_filter_window_s) for both angle and rate.
+  const int hs = std::max(h, static_cast<int>(std::lround(0.5 * js.steering_filter_window_s / dt)));
+  const rover::SmoothedJoints steer =
+      rover::smoothJoints(t, j.values.middleCols<2>(rover::kLambda1), {hs});
+  angles.middleCols<2>(rover::kLambda1) = steer.values;
+  rates.middleCols<2>(rover::kLambda1) = steer.rates;
+  // Joint-rate noise of the smoothing-and-differencing filter (rover/joint_rates.h).
+  const double s_steer = js.steeringNoise();
+  rover::JointVectord rate_var;
+  rate_var.head<3>().setConstant(std::pow(js.angle_noise_rad / dt, 2) *
+                                 rover::smoothedRateVarianceFactor(h));
+  rate_var.segment<2>(rover::kLambda1)
+      .setConstant(std::pow(s_steer / dt, 2) * rover::smoothedRateVarianceFactor(hs));
+  rate_var.tail<rover::kNumWheels>().setConstant(std::pow(js.wheel_noise_rad / dt, 2) *
+                                                 rover::smoothedRateVarianceFactor(h));
+  const double steer_var = s_steer * s_steer * rover::smoothedValueVarianceFactor(hs);
   std::vector<JointSample> out(static_cast<size_t>(j.size()));
   for (Eigen::Index k = 0; k < j.size(); ++k) {
-    const rover::JointVectord q = j.values.row(k).transpose();
+    const rover::JointVectord q = angles.row(k).transpose();
     const rover::JointVectord q_dot = rates.row(k).transpose();
     const auto kin = rover::forwardKinematics<double>(log.geometry, q);
     JointSample& s = out[static_cast<size_t>(k)];
@@ -477,13 +509,22 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
     for (int i = 0; i < rover::kNumWheels; ++i) {
       s.T_body_wheel[i] = kin[i].T_body_wheel;
       s.joint_twist[i] = rover::wheelJointTwist(kin[i], q_dot);
+      s.joint_twist_covariance[i] = kin[i].J * rate_var.asDiagonal() * kin[i].J.transpose();
+      const bool steered =
+          kin[i].J.col(rover::kLambda1).any() || kin[i].J.col(rover::kLambda2).any();
+      s.steering_variance[i] = steered ? steer_var : 0.0;
     }
   }
   return out;
 }
 
 EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const InitialState& init,
-                 const EkfOptions& options) {
+                 const EkfOptions& requested) {
+  EkfOptions options = requested;
+  if (options.velocity == EkfOptions::VelocityModel::kAuto) {
+    options.velocity = log.accel ? EkfOptions::VelocityModel::kAccelDriven
+                                 : EkfOptions::VelocityModel::kPerturbation;
+  }
   Ekf ekf(log.config, log.geometry, options, init, log.gyro.values.cols() == 3,
           log.cmd.has_value());
   ekf.setSamplePeriods(medianPeriod(log.gyro), log.accel ? medianPeriod(*log.accel) : 0.1);

@@ -52,10 +52,17 @@ void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   c.accel.lever_arm_m = r.vec3(a, "accelerometer", "lever_arm_m", c.accel.lever_arm_m);
   c.accel.noise_mps2 = r.number(a, "accelerometer", "noise_mps2", c.accel.noise_mps2, 0.0, 100.0);
 
-  const YAML::Node j =
-      r.section(root, "joint_sensors", {"angle_noise_rad", "rate_filter_half_window"});
+  const YAML::Node j = r.section(root, "joint_sensors",
+                                 {"angle_noise_rad", "steering_noise_rad", "wheel_noise_rad",
+                                  "rate_filter_half_window", "steering_filter_window_s"});
   c.joints.angle_noise_rad =
       r.number(j, "joint_sensors", "angle_noise_rad", c.joints.angle_noise_rad, 0.0, 1.0);
+  if (j["steering_noise_rad"])
+    c.joints.steering_noise_rad = r.number(j, "joint_sensors", "steering_noise_rad", 0.0, 0.0, 3.0);
+  c.joints.wheel_noise_rad =
+      r.number(j, "joint_sensors", "wheel_noise_rad", c.joints.wheel_noise_rad, 0.0, 1.0);
+  c.joints.steering_filter_window_s = r.number(j, "joint_sensors", "steering_filter_window_s",
+                                               c.joints.steering_filter_window_s, 0.0, 100.0);
   c.joints.rate_filter_half_window = r.integer(j, "joint_sensors", "rate_filter_half_window",
                                                c.joints.rate_filter_half_window, 1, 100);
 }
@@ -238,7 +245,10 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
       << num(p.rate_noise_rad_s2_per_sqrt_hz) << YAML::EndMap;
   out << YAML::Key << "joint_sensors" << YAML::Value << YAML::BeginMap << YAML::Key
       << "angle_noise_rad" << YAML::Value << num(c.joints.angle_noise_rad) << YAML::Key
-      << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window
+      << "steering_noise_rad" << YAML::Value << num(c.joints.steeringNoise()) << YAML::Key
+      << "wheel_noise_rad" << YAML::Value << num(c.joints.wheel_noise_rad) << YAML::Key
+      << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window << YAML::Key
+      << "steering_filter_window_s" << YAML::Value << num(c.joints.steering_filter_window_s)
       << YAML::EndMap;
   out << YAML::EndMap;
 

@@ -85,6 +85,10 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
   c.accel.noise_mps2 = s.accel_noise_mps2;
   c.joints.angle_noise_rad =
       std::max(s.joint_angle_noise_rad, s.joint_quantum_rad / std::sqrt(12.0));
+  c.joints.steering_noise_rad =
+      std::max(s.steering_noise_rad, s.joint_quantum_rad / std::sqrt(12.0));
+  c.joints.wheel_noise_rad =
+      std::max(s.wheel_angle_noise_rad, s.wheel_quantum_rad / std::sqrt(12.0));
 }
 
 }  // namespace

@@ -63,8 +63,14 @@ struct ProcessConfig {
 };
 
 struct JointSensorConfig {
-  double angle_noise_rad = 0.001;   ///< potentiometer/encoder 1σ
+  double angle_noise_rad = 0.001;            ///< suspension potentiometers (γ) 1σ
+  std::optional<double> steering_noise_rad;  ///< steering λ 1σ; default: angle_noise_rad
+  double wheel_noise_rad = 0.0005;  ///< drive encoders ψ 1σ (with quantisation q: ≥ q/√12)
+  double steeringNoise() const { return steering_noise_rad.value_or(angle_noise_rad); }
   int rate_filter_half_window = 3;  ///< see rover/joint_rates.h
+  /// Steering angles change slowly (the rover steers, then drives): they are smoothed over
+  /// ±window/2 so that their noise does not bias the slip constraint (E[cos δλ] < 1).
+  double steering_filter_window_s = 1.0;
 };
 
 struct RoverConfig {

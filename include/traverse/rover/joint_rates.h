@@ -23,4 +23,17 @@ struct JointRateFilter {
 Eigen::MatrixXd jointRates(std::span<const double> t, const Eigen::MatrixXd& angles,
                            const JointRateFilter& filter = {});
 
+/// The same local quadratic fit, returning the smoothed values (the fit at each sample) and the
+/// rates together. For white noise σ the smoothed value's σ is about σ √(3(3h²+3h−1) /
+/// ((2h−1)(2h+1)(2h+3))) at interior samples (≈ 1.5 σ/√(2h+1) for large h).
+struct SmoothedJoints {
+  Eigen::MatrixXd values, rates;
+};
+SmoothedJoints smoothJoints(std::span<const double> t, const Eigen::MatrixXd& angles,
+                            const JointRateFilter& filter);
+
+/// Variance factors of smoothJoints for white noise at interior samples: value, and rate × Δt².
+double smoothedValueVarianceFactor(int half_window);
+double smoothedRateVarianceFactor(int half_window);
+
 }  // namespace traverse::rover
