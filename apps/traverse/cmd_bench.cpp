@@ -62,8 +62,7 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
     if (!*cmd) return -1;
     const std::filesystem::path data = datasetsDir();
     const sim::Scenario sc = sim::loadScenario(opt->scenario, data, opt->overrides);
-    std::filesystem::path rover_dir(sc.rover);
-    if (!std::filesystem::exists(rover_dir / "rover.yaml")) rover_dir = data / "rovers" / sc.rover;
+    const std::filesystem::path rover_dir = sim::roverDirectory(sc, data);
     const est::PipelineConfig config = pipelineConfig(opt->pipeline);
     std::vector<eval::MetricsReport> reports(static_cast<size_t>(opt->runs));
     std::atomic<long> next{0}, done{0};

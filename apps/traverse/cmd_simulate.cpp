@@ -30,13 +30,7 @@ Command addSimulateCommand(CLI::App& app, const GlobalOptions& global) {
     if (!*cmd) return -1;
     const std::filesystem::path data = datasetsDir();
     const sim::Scenario sc = sim::loadScenario(opt->scenario, data, opt->overrides);
-    std::filesystem::path rover_dir(sc.rover);
-    if (!std::filesystem::exists(rover_dir / "rover.yaml")) rover_dir = data / "rovers" / sc.rover;
-    if (!std::filesystem::exists(rover_dir / "rover.yaml")) {
-      throw InputError(
-          opt->scenario, 0,
-          "rover '" + sc.rover + "' not found (no " + (rover_dir / "rover.yaml").string() + ")");
-    }
+    const std::filesystem::path rover_dir = sim::roverDirectory(sc, data);
     const sim::Simulation result = sim::simulate(sc, rover_dir, opt->seed);
     io::writeLog(opt->out, result.log);
     if (!global.quiet) {

@@ -1,7 +1,7 @@
 #include "traverse/estimators/segments_output.h"
 
 #include <charconv>
-#include <fstream>
+#include "traverse/io/atomic_file.h"
 
 namespace traverse::est {
 
@@ -27,13 +27,7 @@ void writeSegments(const std::filesystem::path& file, const std::vector<SegmentR
     if (r.solve_seconds) num(*r.solve_seconds);
     text += "\n";
   }
-  const std::filesystem::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    f << text;
-    if (!f) throw std::runtime_error("cannot write " + tmp.string());
-  }
-  std::filesystem::rename(tmp, file);
+  io::writeFileAtomically(file, text);
 }
 
 }  // namespace traverse::est

@@ -1,8 +1,8 @@
 #include "traverse/estimators/trajectory.h"
 
 #include <charconv>
-#include <fstream>
 
+#include "traverse/io/atomic_file.h"
 #include "traverse/io/csv.h"
 #include "traverse/io/log_writer.h"
 
@@ -100,14 +100,7 @@ void writeTrajectory(const std::filesystem::path& dir, const Trajectory& tr) {
       put(v, ' ');
     put(q.w(), '\n');
   }
-  const auto file = dir / (tr.name + ".tum");
-  const auto tmp = std::filesystem::path(file.string() + ".tmp");
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    f << text;
-    if (!f) throw std::runtime_error("cannot write " + tmp.string());
-  }
-  std::filesystem::rename(tmp, file);
+  io::writeFileAtomically(dir / (tr.name + ".tum"), text);
 }
 
 Trajectory readTrajectory(const std::filesystem::path& dir, const std::string& name) {

@@ -1,5 +1,7 @@
 #include "traverse/eval/json.h"
 
+#include "traverse/io/atomic_file.h"
+
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -111,20 +113,7 @@ JsonWriter& JsonWriter::string(std::string_view text) {
 }
 
 void writeTextAtomically(const std::filesystem::path& file, const std::string& text) {
-  const std::filesystem::path tmp(file.string() + ".tmp");
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << text;
-    f.flush();
-    if (!f) throw std::runtime_error("cannot write " + tmp.string());
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    throw std::runtime_error("cannot rename " + tmp.string() + " to " + file.string() + ": " +
-                             ec.message());
-  }
+  io::writeFileAtomically(file, text);
 }
 
 }  // namespace traverse::eval

@@ -11,6 +11,7 @@
 #include "io/yaml_reader.h"
 #include "traverse/core/error.h"
 #include "traverse/core/so3.h"
+#include "traverse/io/atomic_file.h"
 #include "traverse/io/rover_config.h"
 
 namespace traverse::io {
@@ -252,13 +253,9 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
       << YAML::EndMap;
   out << YAML::EndMap;
 
-  const std::filesystem::path tmp = yaml_file.string() + ".tmp";
-  {
-    std::ofstream f(tmp);
-    f << "# traverse rover description, log format 1 (docs/log-format.md)\n" << out.c_str() << "\n";
-    if (!f) throw std::runtime_error("cannot write " + tmp.string());
-  }
-  std::filesystem::rename(tmp, yaml_file);
+  io::writeFileAtomically(
+      yaml_file, std::string("# traverse rover description, log format 1 (docs/log-format.md)\n") +
+                     out.c_str() + "\n");
 }
 
 }  // namespace traverse::io

@@ -165,6 +165,18 @@ void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
 
 }  // namespace
 
+std::filesystem::path roverDirectory(const Scenario& sc,
+                                     const std::filesystem::path& datasets_dir) {
+  std::filesystem::path dir(sc.rover);
+  if (!std::filesystem::exists(dir / "rover.yaml")) dir = datasets_dir / "rovers" / sc.rover;
+  if (!std::filesystem::exists(dir / "rover.yaml")) {
+    throw InputError(
+        sc.name, 0,
+        "rover '" + sc.rover + "' not found (no " + (dir / "rover.yaml").string() + ")");
+  }
+  return dir;
+}
+
 Scenario loadScenario(const std::string& name_or_path, const std::filesystem::path& datasets_dir,
                       const std::vector<std::string>& overrides) {
   std::filesystem::path file(name_or_path);

@@ -82,6 +82,11 @@ struct Scenario {
   SensorSpec sensors;
 };
 
+/// The rover directory a scenario names: a directory path, or datasets/rovers/<rover>. Throws
+/// InputError when neither holds a rover.yaml.
+std::filesystem::path roverDirectory(const Scenario& scenario,
+                                     const std::filesystem::path& datasets_dir);
+
 /// Loads a scenario by name (datasets/scenarios/<name>.yaml under `datasets_dir`) or path,
 /// applying `overrides` ("dotted.key=value"). Errors are InputErrors naming file, line, key.
 Scenario loadScenario(const std::string& name_or_path, const std::filesystem::path& datasets_dir,
