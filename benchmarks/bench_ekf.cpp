@@ -1,6 +1,7 @@
 // EKF step cost: propagation + six-wheel slip update (24 rows, sequential per wheel) + sun
 // update, on a real state from the bundled multi-stop log (issue 4 target: ≥ 100 000 steps/s).
-//   build/release/benchmarks/bench_ekf --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+//   build/release/benchmarks/bench_ekf --benchmark_repetitions=5
+//   --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
 #include "traverse/estimators/ekf.h"
@@ -20,7 +21,8 @@ struct Setup {
 const Setup& setup() {
   static const Setup s = [] {
     Setup x;
-    x.log = io::readLog(std::filesystem::path(TRAVERSE_SOURCE_DIR) / "datasets" / "logs" / "multi-stop");
+    x.log = io::readLog(std::filesystem::path(TRAVERSE_SOURCE_DIR) / "datasets" / "logs" /
+                        "multi-stop");
     x.seg = est::segment(x.log);
     x.init = est::initialState(x.log, x.seg);
     x.joints = est::jointSamples(x.log);

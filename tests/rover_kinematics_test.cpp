@@ -279,12 +279,13 @@ TEST(SlipConstraint, AnalyticJacobianMatchesJets) {
     x << randomVector<3>(rng, 0.2), randomVector<3>(rng, 0.5), randomVector<1>(rng, 0.6);
     const auto f = [&](const auto& s) {
       using T = typename std::decay_t<decltype(s)>::Scalar;
-      return slipConstraint<T>(kin[i].T_body_wheel, geo.wheels[i].radius, jt, Vec3<T>(s.template head<3>()),
-                               Vec3<T>(s.template segment<3>(3)), s[6]);
+      return slipConstraint<T>(kin[i].T_body_wheel, geo.wheels[i].radius, jt,
+                               Vec3<T>(s.template head<3>()), Vec3<T>(s.template segment<3>(3)),
+                               s[6]);
     };
     Eigen::Matrix<double, 4, 7> J;
-    const Vec4d t = slipConstraintWithJacobian(kin[i].T_body_wheel, geo.wheels[i].radius, jt, x.head<3>(),
-                                               x.segment<3>(3), x[6], &J);
+    const Vec4d t = slipConstraintWithJacobian(kin[i].T_body_wheel, geo.wheels[i].radius, jt,
+                                               x.head<3>(), x.segment<3>(3), x[6], &J);
     EXPECT_LT((t - f(x)).norm(), 1e-14);
     EXPECT_LT((J - testing::autodiffJacobian<4, 7>(f, x)).cwiseAbs().maxCoeff(), 1e-12);
   }
