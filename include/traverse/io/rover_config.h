@@ -55,7 +55,7 @@ struct SlipNoiseConfig {
 /// Process-model parameters (K-1, K-2, K-8, K-9).
 struct ProcessConfig {
   double contact_angle_time_constant_s = 2.0;        ///< A_ξ = −1/τ (K-8)
-  double contact_angle_noise_rad_per_sqrt_s = 0.15;  ///< n_ξ density
+  double contact_angle_noise_rad_per_sqrt_s = 0.05;  ///< n_ξ density
   double velocity_time_constant_s = 1.0;             ///< A_v = −1/τ (K-1)
   double velocity_noise_mps2_per_sqrt_hz = 0.05;     ///< n_v density
   double rate_time_constant_s = 1.0;                 ///< A_ω = −1/τ (K-2)
