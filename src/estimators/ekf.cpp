@@ -342,19 +342,24 @@ void Ekf::updateSun(const Vec2d& s_m, const Vec3d& sun_site) {
   }
 }
 
-void Ekf::updateGyro(const Vec3d& w_m) {
-  // K-12: ω_m = B_g(ω + b), ω = ω_c + ω_p; one scalar update per measured axis.
+void Ekf::gyroAxisUpdates(const Vec3d& w_m, bool at_rest, long* count) {
+  // K-12, one scalar update per measured axis: ω_m = ω + b with ω = ω_c + ω_p in motion and
+  // ω = 0 at rest (then each sample is bias plus noise: Nickels' per-axis drift filter).
   const double n2 = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s;
   for (int a = 0; a < 3; ++a) {
     if (S_(a, a) == 0) continue;
     Eigen::Matrix<double, 1, kEkfStates> H = Eigen::Matrix<double, 1, kEkfStates>::Zero();
-    H(0, I::kRate + a) = 1.0, H(0, I::kBias + a) = 1.0;
-    // The commanded part is zero unless cmd.csv gives it.
-    const double predicted = w_p_[a] + b_[a] + last_w_cmd_[a];
+    H(0, I::kBias + a) = 1.0;
+    if (!at_rest) H(0, I::kRate + a) = 1.0;
+    const double predicted = b_[a] + (at_rest ? 0.0 : w_p_[a] + last_w_cmd_[a]);
     update<1>(Eigen::Matrix<double, 1, 1>(w_m[a] - predicted), H, Eigen::Matrix<double, 1, 1>(n2),
               0.0);
-    ++stats_.gyro_updates;
+    ++*count;
   }
+}
+
+void Ekf::updateGyro(const Vec3d& w_m) {
+  gyroAxisUpdates(w_m, false, &stats_.gyro_updates);
 }
 
 void Ekf::updateZeroVelocity(const EkfInputs& in) {
@@ -382,17 +387,7 @@ void Ekf::updateZeroRate(const EkfInputs& in) {
 }
 
 void Ekf::updateRestBias(const EkfInputs& in) {
-  // At rest a gyro sample is bias plus noise, ω_m = B_g b + n_g (K-12 with ω = 0): Nickels'
-  // per-axis drift filter, one scalar update per measured axis and sample.
-  const double n2 = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s;
-  for (int a = 0; a < 3; ++a) {
-    if (S_(a, a) == 0) continue;
-    Eigen::Matrix<double, 1, kEkfStates> H = Eigen::Matrix<double, 1, kEkfStates>::Zero();
-    H(0, I::kBias + a) = 1.0;
-    update<1>(Eigen::Matrix<double, 1, 1>(in.gyro[a] - b_[a]), H, Eigen::Matrix<double, 1, 1>(n2),
-              0.0);
-    ++stats_.bias_updates;
-  }
+  gyroAxisUpdates(in.gyro, true, &stats_.bias_updates);
 }
 
 void Ekf::updateGravity(const sensors::RollPitchMeasurement& m) {

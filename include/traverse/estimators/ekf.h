@@ -122,6 +122,7 @@ class Ekf {
   bool update(const Eigen::Matrix<double, M, 1>& r, const Eigen::Matrix<double, M, kEkfStates>& H,
               const Eigen::Matrix<double, M, M>& R, double gate);
   void absorb(const EkfVector& dx);
+  void gyroAxisUpdates(const Vec3d& w_m, bool at_rest, long* count);
 
   const io::RoverConfig& config_;
   const rover::RoverGeometry& geometry_;
