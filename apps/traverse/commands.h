@@ -21,6 +21,8 @@ std::filesystem::path datasetsDir();
 Command addInfoCommand(CLI::App& app, const GlobalOptions& global);
 Command addSimulateCommand(CLI::App& app, const GlobalOptions& global);
 Command addFilterCommand(CLI::App& app, const GlobalOptions& global);
+Command addSmoothCommand(CLI::App& app, const GlobalOptions& global);
+Command addRunCommand(CLI::App& app, const GlobalOptions& global);
 Command addBenchCommand(CLI::App& app, const GlobalOptions& global);
 Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global);
 

@@ -30,8 +30,9 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", global.quiet, "Print nothing but errors");
   app.fallthrough();  // global flags (--quiet) also after the subcommand
   std::vector<app::Command> commands = {
-      app::addInfoCommand(app, global), app::addEvaluateCommand(app, global),
+      app::addInfoCommand(app, global),     app::addEvaluateCommand(app, global),
       app::addSimulateCommand(app, global), app::addFilterCommand(app, global),
+      app::addSmoothCommand(app, global),   app::addRunCommand(app, global),
       app::addBenchCommand(app, global)};
   try {
     app.parse(argc, argv);

@@ -32,6 +32,31 @@ void addPipelineOptions(CLI::App& cmd, PipelineOptions& o) {
                "Dead reckoning: project wheel speed by the pitch");
 }
 
+void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
+  cmd.add_option("--node-period", o.node_period_s,
+                 "Smoother node period in seconds (0: a node at every joint sample)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd.add_option("--bias-model", o.bias_model,
+                 "Gyro bias per segment: constant, or random-walk (one per node, K-9)")
+      ->check(CLI::IsMember({"constant", "random-walk"}))
+      ->capture_default_str();
+  cmd.add_option("--loss", o.loss, "Robust loss on the sun and slip residuals")
+      ->check(CLI::IsMember({"huber", "cauchy", "none"}))
+      ->capture_default_str();
+  cmd.add_option("--loss-scale", o.loss_scale, "Robust loss scale in standard deviations")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd.add_option("--max-iterations", o.max_iterations, "Levenberg-Marquardt iterations per segment")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  cmd.add_option("--threads", o.threads, "Segments solved in parallel (0: all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd.add_flag("--no-covariance", o.no_covariance,
+               "Skip the smoother's marginal covariances (σ columns then come from the EKF)");
+}
+
 est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   est::PipelineConfig c;
   c.init.position_site = Vec3d(o.initial_position[0], o.initial_position[1], o.initial_position[2]);
@@ -46,24 +71,48 @@ est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   c.ekf.use_slip = !o.no_slip;
   c.ekf.gating = !o.no_gating;
   c.dead_reckoning.pitch_projection = o.pitch_projection;
+  auto& so = c.smoother;
+  so.node_period_s = o.node_period_s;
+  so.bias_model = o.bias_model == "random-walk" ? smoother::SmootherOptions::BiasModel::kRandomWalk
+                                                : smoother::SmootherOptions::BiasModel::kConstant;
+  so.loss = o.loss == "cauchy" ? smoother::SmootherOptions::Loss::kCauchy
+            : o.loss == "none" ? smoother::SmootherOptions::Loss::kNone
+                               : smoother::SmootherOptions::Loss::kHuber;
+  so.loss_scale = o.loss_scale;
+  so.max_iterations = o.max_iterations;
+  so.threads = o.threads;
+  so.covariance = !o.no_covariance;
+  using SVM = smoother::SmootherOptions::VelocityModel;
+  so.velocity = o.velocity_model == "accel"          ? SVM::kAccelDriven
+                : o.velocity_model == "perturbation" ? SVM::kPerturbation
+                                                     : SVM::kAuto;
+  so.use_sun = !o.no_sun;
+  so.use_slip = !o.no_slip;
   return c;
 }
 
-est::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global, bool /*smooth*/) {
+est::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global, bool smooth) {
   io::ReadReport report;
   const io::TraverseLog log = io::readLog(o.log_dir, io::ReadOptions{o.skip_bad_rows}, &report);
   for (const auto& [file, n] : report.skipped_rows)
     std::cerr << file << ": skipped " << n << " bad rows\n";
-  est::Estimates e = est::estimate(log, pipelineConfig(o));
+  est::PipelineConfig config = pipelineConfig(o);
+  config.smooth = smooth;
+  est::Estimates e = est::estimate(log, config);
   std::filesystem::create_directories(o.out_dir);
   est::writeTrajectory(o.out_dir, e.dr);
   est::writeTrajectory(o.out_dir, e.ekf.trajectory);
+  std::vector<est::Trajectory> trajectories{e.dr, e.ekf.trajectory};
+  if (e.smoothed) {
+    est::writeTrajectory(o.out_dir, e.smoothed->trajectory);
+    trajectories.push_back(e.smoothed->trajectory);
+  }
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
   if (log.truth) {  // evaluation when the log has truth (outputs.md)
     const eval::TruthTrajectory truth(*log.truth);
     const auto name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
     const eval::MetricsReport report =
-        eval::evaluateAll(name.empty() ? o.log_dir : name, {e.dr, e.ekf.trajectory}, truth);
+        eval::evaluateAll(name.empty() ? o.log_dir : name, trajectories, truth);
     eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
     if (!global.quiet) std::cout << eval::formatMetricsTable(report);
   }
@@ -75,9 +124,21 @@ est::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global
               << s.slip_updates << " (" << s.slip_rejected << " gated out), sun " << s.sun_updates
               << " (" << s.sun_rejected << " gated out), zero-velocity " << s.zero_velocity_updates
               << ", zero-rate " << s.zero_rate_updates << ", bias " << s.bias_updates
-              << ", gravity " << s.gravity_updates << ", gyro " << s.gyro_updates << "\n"
-              << "wrote " << o.out_dir << "/{dr,ekf}.{csv,tum}, segments.csv"
-              << (log.truth ? ", metrics.json" : "") << "\n";
+              << ", gravity " << s.gravity_updates << ", gyro " << s.gyro_updates << "\n";
+    if (e.smoothed) {
+      int converged = 0, fallback = 0;
+      double solve = 0, cov = 0;
+      size_t nodes = 0;
+      for (const auto& g : e.smoothed->segments) {
+        converged += g.status == "converged", fallback += g.status == "fallback_ekf";
+        solve += g.solve_seconds, cov += g.covariance_seconds, nodes += g.num_nodes;
+      }
+      std::cout << "smoother: " << e.smoothed->segments.size() << " segments (" << converged
+                << " converged, " << fallback << " fell back to the EKF), " << nodes
+                << " nodes; solve " << solve << " s, covariance " << cov << " s (CPU, summed)\n";
+    }
+    std::cout << "wrote " << o.out_dir << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
+              << ".{csv,tum}, segments.csv" << (log.truth ? ", metrics.json" : "") << "\n";
   }
   return e;
 }

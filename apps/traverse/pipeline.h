@@ -17,9 +17,18 @@ struct PipelineOptions {
   std::string attitude_model = "gyro-driven";
   std::string velocity_model = "auto";
   bool no_sun = false, no_slip = false, no_gating = false, pitch_projection = false;
+  // Smoother (smooth, run).
+  double node_period_s = 0.0;
+  std::string bias_model = "constant";
+  std::string loss = "huber";
+  double loss_scale = 3.0;
+  int max_iterations = 50;
+  int threads = 0;
+  bool no_covariance = false;
 };
 
 void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);
+void addSmootherOptions(CLI::App& cmd, PipelineOptions& options);
 est::PipelineConfig pipelineConfig(const PipelineOptions& options);
 /// Reads the log, estimates, writes OUTDIR; returns what it estimated.
 est::Estimates runPipeline(const PipelineOptions& options, const GlobalOptions& global,

@@ -16,6 +16,9 @@
 namespace traverse::est {
 namespace {
 
+using io::interpolateRow;
+using io::medianPeriod;
+
 using I = EkfIndex;
 
 /// Regularized lower incomplete gamma P(a, x): series below a + 1, Lentz continued fraction
@@ -40,8 +43,6 @@ double gammaP(double a, double x) {
   }
   return 1.0 - std::exp(log_prefix) * h;
 }
-
-double medianPeriod(const io::Stream& s);
 
 template <int N>
 using Jet = ceres::Jet<double, N>;
@@ -273,6 +274,26 @@ void Ekf::absorb(const EkfVector& dx) {
   P_.block<kEkfStates, 3>(0, I::kTheta) = P_.block<kEkfStates, 3>(0, I::kTheta) * G.transpose();
 }
 
+Eigen::Matrix4d slipCovariance(const io::SlipNoiseConfig& sn, const JointSample& js, int i,
+                               const Vec3d& v_body, const Vec3d& w_body,
+                               const Eigen::Matrix<double, 4, 6>& J_vw) {
+  Eigen::Matrix4d R =
+      Vec4d(sn.longitudinal_mps * sn.longitudinal_mps, sn.lateral_mps * sn.lateral_mps,
+            sn.normal_mps * sn.normal_mps, sn.spin_rad_s * sn.spin_rad_s)
+          .asDiagonal();
+  // Joint noise enters the constraint too: the joint twist J q̇ through ∂t/∂[v; ω] (t is linear
+  // in the twist), and a steering-angle error turns the wheel's heading, moving the contact
+  // point's velocity into the transverse row by |v_wheel| δλ.
+  R.noalias() += J_vw * js.joint_twist_covariance[i] * J_vw.transpose();
+  if (js.steering_variance[i] > 0) {
+    const Posed& g = js.T_body_wheel[i];
+    const Twistd& jt = js.joint_twist[i];
+    const Vec3d u = g.R.transpose() * (v_body + jt.head<3>() + (w_body + jt.tail<3>()).cross(g.p));
+    R(1, 1) += js.steering_variance[i] * (u.x() * u.x() + u.y() * u.y());
+  }
+  return R;
+}
+
 void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
   const bool accel_driven =
       options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
@@ -281,11 +302,6 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
   const Twistd nominal_twist =
       has_cmd_ ? rover::nominalBodyTwist(geometry_, in.v_cmd.x(), in.w_cmd.z())
                : rover::nominalBodyTwist(geometry_, v_now().x(), omega<double>(w_p_, b_, in).z());
-  const auto& sn = config_.slip_noise;
-  const Eigen::Matrix4d R =
-      Vec4d(sn.longitudinal_mps * sn.longitudinal_mps, sn.lateral_mps * sn.lateral_mps,
-            sn.normal_mps * sn.normal_mps, sn.spin_rad_s * sn.spin_rad_s)
-          .asDiagonal();
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
   for (int i = 0; i < rover::kNumWheels; ++i) {
     const double radius = geometry_.wheels[i].radius;
@@ -296,17 +312,8 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     Eigen::Matrix<double, 4, 7> J;
     const Vec4d t = rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, jt, s.head<3>(),
                                                       s.segment<3>(3), s[6], &J);
-    // Joint noise enters the constraint too: the joint twist J q̇ through ∂t/∂[v; ω] (t is linear
-    // in the twist), and a steering-angle error turns the wheel's heading, moving the contact
-    // point's velocity into the transverse row by |v_wheel| δλ.
-    Eigen::Matrix4d Ri = R;
-    Ri.noalias() += J.leftCols<6>() * js.joint_twist_covariance[i] * J.leftCols<6>().transpose();
-    if (js.steering_variance[i] > 0) {
-      const Posed& g = js.T_body_wheel[i];
-      const Vec3d u = g.R.transpose() *
-                      (s.head<3>() + jt.head<3>() + (s.segment<3>(3) + jt.tail<3>()).cross(g.p));
-      Ri(1, 1) += js.steering_variance[i] * (u.x() * u.x() + u.y() * u.y());
-    }
+    const Eigen::Matrix4d Ri =
+        slipCovariance(config_.slip_noise, js, i, s.head<3>(), s.segment<3>(3), J.leftCols<6>());
     Eigen::Matrix<double, 4, kEkfStates> H = Eigen::Matrix<double, 4, kEkfStates>::Zero();
     H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
     H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
@@ -426,26 +433,6 @@ TrajectoryNode Ekf::node(double t, const EkfInputs& in) const {
 }
 
 namespace {
-
-/// Linear interpolation of a stream's row at time t (clamped at the ends).
-Eigen::VectorXd interpolateRow(const io::Stream& s, double t) {
-  const double* b = s.t.data();
-  const double* e = b + s.size();
-  const double* it = std::lower_bound(b, e, t);
-  if (it == b) return s.values.row(0).transpose();
-  if (it == e) return s.values.row(s.size() - 1).transpose();
-  const Eigen::Index k = it - b;
-  const double u = (t - s.t[k - 1]) / (s.t[k] - s.t[k - 1]);
-  return ((1 - u) * s.values.row(k - 1) + u * s.values.row(k)).transpose();
-}
-
-double medianPeriod(const io::Stream& s) {
-  if (s.size() < 2) return 0.1;
-  std::vector<double> d(static_cast<size_t>(s.size() - 1));
-  for (Eigen::Index k = 1; k < s.size(); ++k) d[static_cast<size_t>(k - 1)] = s.t[k] - s.t[k - 1];
-  std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
-  return d[d.size() / 2];
-}
 
 EkfInputs inputsAt(const io::TraverseLog& log, double t) {
   EkfInputs in;

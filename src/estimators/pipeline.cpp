@@ -37,6 +37,10 @@ Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config) {
   e.dr = deadReckoning(log, e.segmentation, e.init, config.dead_reckoning);
   e.ekf = runEkf(log, e.segmentation, e.init, config.ekf);
   e.segments = segmentRows(e.segmentation, e.ekf.trajectory);
+  if (config.smooth) {
+    e.smoothed = smoother::smooth(log, e.segmentation, e.ekf.trajectory, config.smoother);
+    e.segments = smoother::smootherSegmentRows(e.segmentation, e.segments, *e.smoothed);
+  }
   return e;
 }
 

@@ -153,6 +153,13 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
 /// differencing, K §3).
 std::vector<JointSample> jointSamples(const io::TraverseLog& log);
 
+/// Covariance of wheel i's four slip rows (K-17): rover.yaml's slip noise, plus the joint-rate
+/// noise carried through ∂t/∂[v; ω] = J_vw, plus the steering-angle noise (transverse row). The
+/// EKF and the smoother both whiten the slip constraint with it.
+Eigen::Matrix4d slipCovariance(const io::SlipNoiseConfig& noise, const JointSample& js, int wheel,
+                               const Vec3d& v_body, const Vec3d& w_body,
+                               const Eigen::Matrix<double, 4, 6>& J_vw);
+
 /// χ² quantile for `dof` degrees of freedom (regularized incomplete gamma), for gating.
 double chiSquareQuantile(double probability, int dof);
 

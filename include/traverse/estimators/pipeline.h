@@ -1,12 +1,14 @@
 // The estimation pipeline on one log: segmentation → initial state → dead reckoning and the
-// forward EKF (→ the smoother, when it exists), and the per-segment rows of segments.csv.
+// forward EKF → the per-segment batch smoother (when asked), and the rows of segments.csv.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "traverse/estimators/dead_reckoning.h"
 #include "traverse/estimators/ekf.h"
 #include "traverse/estimators/segments_output.h"
+#include "traverse/smoother/smoother.h"
 
 namespace traverse::est {
 
@@ -15,6 +17,8 @@ struct PipelineConfig {
   InitOptions init;
   DeadReckoningOptions dead_reckoning;
   EkfOptions ekf;
+  bool smooth = false;  ///< run the smoother after the EKF
+  smoother::SmootherOptions smoother;
 };
 
 struct Estimates {
@@ -22,7 +26,8 @@ struct Estimates {
   InitialState init;
   Trajectory dr;
   EkfResult ekf;
-  std::vector<SegmentRow> segments;
+  std::optional<smoother::SmootherResult> smoothed;
+  std::vector<SegmentRow> segments;  ///< the smoother's bias and summary on motion rows
 };
 
 Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {});

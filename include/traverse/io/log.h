@@ -32,6 +32,11 @@ struct Stream {
   Eigen::Ref<const Eigen::VectorXd> channel(std::string_view name) const;
 };
 
+/// Median sample period of a stream (s); 0.1 with fewer than two samples.
+double medianPeriod(const Stream& s);
+/// A stream's row linearly interpolated at time t (clamped to the first and last rows).
+Eigen::VectorXd interpolateRow(const Stream& s, double t);
+
 struct TraverseLog {
   std::filesystem::path dir;
   RoverConfig config;

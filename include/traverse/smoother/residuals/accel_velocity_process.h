@@ -1,0 +1,57 @@
+// Accelerometer-driven velocity process (K-11, O-4): the specific force of K-10 solved for the
+// body-frame derivative of the body velocity, integrated over one node interval,
+//
+//   v̇ = ā_m − (ω̄ × v̄ − R(q̄)ᵀ g_s + ω̄ × (ω̄ × L) + ω̇ × L)      (sensors::velocityRateFromAccel)
+//   r = (v_{k+1} − v_k − v̇ Δt) / σ,     σ² = σ_a² T_a Δt + σ_floor²
+//
+// ā_m is the mean accelerometer reading over [t_k, t_{k+1}], q̄, v̄, ω̄ the interval midpoints,
+// ω̇ = (ω_{k+1} − ω_k)/Δt; σ_a² T_a is the white-noise density of readings σ_a every T_a s.
+// Through R(q̄)ᵀ g_s this is what keeps roll and pitch observable while driving.
+//
+// Parameter blocks: q_k, q_{k+1} (x, y, z, w), v_k, v_{k+1} (m/s), ω_k, ω_{k+1} (rad/s).
+#pragma once
+
+#include <ceres/autodiff_cost_function.h>
+
+#include "traverse/sensors/accelerometer.h"
+#include "traverse/smoother/residuals/interpolation.h"
+
+namespace traverse::smoother {
+
+struct AccelVelocityProcessResidual {
+  AccelVelocityProcessResidual(double dt, const Vec3d& mean_accel_mps2, const Vec3d& lever_arm_m,
+                               double gravity_mps2, double sqrt_info)
+      : dt(dt),
+        accel(mean_accel_mps2),
+        lever_arm(lever_arm_m),
+        gravity(gravity_mps2),
+        sqrt_info(sqrt_info) {}
+
+  template <typename T>
+  bool operator()(const T* q_k, const T* q_k1, const T* v_k, const T* v_k1, const T* w_k,
+                  const T* w_k1, T* r) const {
+    const Eigen::Map<const Vec3<T>> va(v_k), vb(v_k1), wa(w_k), wb(w_k1);
+    const Quat<T> q_mid = interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
+                                              Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
+    const Vec3<T> v_mid = T(0.5) * (va + vb), w_mid = T(0.5) * (wa + wb);
+    const Vec3<T> w_dot = (wb - wa) / T(dt);
+    const Vec3<T> v_dot = sensors::velocityRateFromAccel<T>(accel.cast<T>(), q_mid, v_mid, w_mid,
+                                                            w_dot, lever_arm, gravity);
+    Eigen::Map<Vec3<T>>{r} = T(sqrt_info) * (vb - va - v_dot * T(dt));
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double dt, const Vec3d& mean_accel_mps2,
+                                     const Vec3d& lever_arm_m, double gravity_mps2,
+                                     double sqrt_info) {
+    return new ceres::AutoDiffCostFunction<AccelVelocityProcessResidual, 3, 4, 4, 3, 3, 3, 3>(
+        new AccelVelocityProcessResidual(dt, mean_accel_mps2, lever_arm_m, gravity_mps2,
+                                         sqrt_info));
+  }
+
+  double dt;
+  Vec3d accel, lever_arm;
+  double gravity, sqrt_info;
+};
+
+}  // namespace traverse::smoother

@@ -1,0 +1,38 @@
+// At-rest gyro bias (K-12 with ω = 0; Nickels' drift filter): over a rest window each reading
+// is bias plus white noise, so the window's N readings on a measured axis a give
+//
+//   r_a = (b_a − m_a) / (σ_g / √N),    m_a = mean reading over the window
+//
+// — the same information as the N per-reading residuals it replaces (those readings are not
+// also used by the gyro increments). Unmeasured axes give a zero row.
+//
+// Parameter block: b (rad/s, body axes).
+#pragma once
+
+#include <ceres/sized_cost_function.h>
+
+#include "traverse/core/types.h"
+
+namespace traverse::smoother {
+
+class RestBiasResidual final : public ceres::SizedCostFunction<3, 3> {
+ public:
+  /// sqrt_info: √N/σ_g on measured axes, 0 on the others.
+  RestBiasResidual(const Vec3d& mean_reading_rad_s, const Vec3d& sqrt_info)
+      : mean_(mean_reading_rad_s), sqrt_info_(sqrt_info) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    Eigen::Map<Vec3d>{residuals} =
+        sqrt_info_.cwiseProduct(Eigen::Map<const Vec3d>(parameters[0]) - mean_);
+    if (jacobians && jacobians[0])
+      Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>{jacobians[0]} =
+          sqrt_info_.asDiagonal();
+    return true;
+  }
+
+ private:
+  Vec3d mean_, sqrt_info_;
+};
+
+}  // namespace traverse::smoother

@@ -1,0 +1,83 @@
+// Per-segment batch smoother (docs/model.md "Smoother"; estimation-design.md "Per-segment batch
+// smoother"): each stop-to-stop segment — rest window, motion, rest window — is one nonlinear
+// least-squares problem over all its nodes, solved with Ceres (Levenberg-Marquardt,
+// SPARSE_NORMAL_CHOLESKY on SuiteSparse) from the forward EKF's trajectory.
+//
+// Per node k (a joint sample): attitude q_k (BodyQuaternionManifold, storage x, y, z, w), site
+// position x_k, body velocity v_k, body rate ω_k, contact angles ξ_k. Per segment: the gyro
+// bias b (constant), or one b_k per node tied by a random walk (K-9).
+//
+// Segments are independent problems, solved in parallel; each segment's result depends only on
+// its own data, so the output does not depend on the thread count. Consecutive segments share a
+// rest window. They are made to agree there by stitching, in time order: segment s+1 is moved
+// by the rigid transform that puts its pose at the shared window's middle node onto segment s's
+// pose at that node. For position this is exact — the problems are invariant under translation
+// (only the start prior sees absolute position) — and the rotation is the small difference of
+// two estimates of the same rest attitude (reported per segment). The shared window's nodes are
+// then reported from the later segment.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "traverse/estimators/ekf.h"
+#include "traverse/estimators/segmentation.h"
+#include "traverse/estimators/segments_output.h"
+
+namespace traverse::smoother {
+
+struct SmootherOptions {
+  /// Node period: 0 puts a node at every joint sample; otherwise joint samples at least this
+  /// far apart (the slip constraint is applied at the nodes only).
+  double node_period_s = 0.0;
+  enum class BiasModel { kConstant, kRandomWalk };
+  BiasModel bias_model = BiasModel::kConstant;
+  enum class Loss { kNone, kHuber, kCauchy };
+  Loss loss = Loss::kHuber;  ///< on the sun and slip residuals
+  double loss_scale = 3.0;   ///< in whitened units (σ)
+  enum class VelocityModel { kAuto, kPerturbation, kAccelDriven };
+  VelocityModel velocity = VelocityModel::kAuto;  ///< kAuto: O-4 when the log has accel.csv
+  bool use_sun = true, use_slip = true, use_rest = true;
+  double zero_velocity_sigma_mps = 0.001;
+  double zero_rate_sigma_rad_s = 1e-4;
+  double start_position_sigma_m = 1e-4;  ///< the gauge anchor at a segment's first node
+  double rest_margin_s = 0.25;           ///< rest measurements keep clear of the boundaries
+  double attitude_floor_rad = 1e-6, position_floor_m = 1e-6;  ///< process σ floors
+  // Solver.
+  int max_iterations = 50;
+  double function_tolerance = 1e-10, gradient_tolerance = 1e-12, parameter_tolerance = 1e-10;
+  int threads = 0;  ///< segments solved in parallel (0: all cores)
+  bool covariance = true;
+};
+
+/// What the smoother reports per segment (segments.csv adds the bias and solver columns).
+struct SegmentSummary {
+  int index = 0;
+  int motion_segment = -1;  ///< index into Segmentation::segments of the segment's motion
+  double t_start = 0.0, t_end = 0.0;
+  size_t first_node = 0, num_nodes = 0;  ///< into the smoothed trajectory
+  Vec3d bias = Vec3d::Zero(), bias_sigma = Vec3d::Zero();
+  std::string status;  ///< converged | no_convergence | fallback_ekf
+  int iterations = 0;
+  double initial_cost = 0.0, final_cost = 0.0;  ///< ½ Σ ‖r‖² (robust), at the seed and solution
+  double solve_seconds = 0.0, covariance_seconds = 0.0;
+  int residual_blocks = 0, parameters = 0;
+  double stitch_translation_m = 0.0, stitch_rotation_rad = 0.0;
+};
+
+struct SmootherResult {
+  est::Trajectory trajectory;  ///< "smoothed", with covariance
+  std::vector<SegmentSummary> segments;
+};
+
+/// Smooths a log, seeded by the EKF trajectory (one node per joint sample, as runEkf gives).
+SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
+                      const est::Trajectory& ekf, const SmootherOptions& options = {});
+
+/// segments.csv rows: the segmentation's rows, with each motion row carrying its smoother
+/// segment's bias ± σ and solver summary.
+std::vector<est::SegmentRow> smootherSegmentRows(const est::Segmentation& seg,
+                                                 const std::vector<est::SegmentRow>& ekf_rows,
+                                                 const SmootherResult& result);
+
+}  // namespace traverse::smoother

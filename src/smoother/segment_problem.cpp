@@ -1,0 +1,501 @@
+// One smoother segment: build the Ceres problem from the log and the EKF seed, solve it, and
+// read the marginal covariances (include/traverse/smoother/segment_problem.h).
+#include "traverse/smoother/segment_problem.h"
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include <ceres/ceres.h>
+
+#include "traverse/estimators/chain_marginals.h"
+#include "traverse/rover/nominal_slip.h"
+#include "traverse/smoother/body_quaternion_manifold.h"
+#include "traverse/smoother/residuals/accel_velocity_process.h"
+#include "traverse/smoother/residuals/attitude_process.h"
+#include "traverse/smoother/residuals/gravity_residual.h"
+#include "traverse/smoother/residuals/gyro_increment.h"
+#include "traverse/smoother/residuals/markov_process.h"
+#include "traverse/smoother/residuals/position_process.h"
+#include "traverse/smoother/residuals/rest_bias_residual.h"
+#include "traverse/smoother/residuals/slip_residual.h"
+#include "traverse/smoother/residuals/start_prior_residual.h"
+#include "traverse/smoother/residuals/sun_sensor_residual.h"
+#include "traverse/smoother/residuals/whitening.h"
+#include "traverse/smoother/residuals/zero_motion_residual.h"
+
+namespace traverse::smoother {
+
+IntegratedSignal::IntegratedSignal(const Eigen::VectorXd& t, const Eigen::MatrixXd& values)
+    : t_(t), y_(values), c_(Eigen::MatrixXd::Zero(values.rows(), values.cols())) {
+  for (Eigen::Index k = 1; k < t.size(); ++k)
+    c_.row(k) = c_.row(k - 1) + 0.5 * (t[k] - t[k - 1]) * (y_.row(k - 1) + y_.row(k));
+}
+
+Eigen::VectorXd IntegratedSignal::at(double t) const {
+  const Eigen::Index n = t_.size();
+  if (t <= t_[0]) return (c_.row(0) - (t_[0] - t) * y_.row(0)).transpose();
+  if (t >= t_[n - 1]) return (c_.row(n - 1) + (t - t_[n - 1]) * y_.row(n - 1)).transpose();
+  const Eigen::Index k = std::upper_bound(t_.data(), t_.data() + n, t) - t_.data() - 1;
+  const double h = t_[k + 1] - t_[k], s = t - t_[k];
+  // ∫ over [t_k, t] of the linear interpolant: s y_k + ½ s² (y_{k+1} − y_k)/h.
+  return (c_.row(k) + s * y_.row(k) + 0.5 * s * s / h * (y_.row(k + 1) - y_.row(k))).transpose();
+}
+
+SmootherData::SmootherData(const io::TraverseLog& log, const est::Trajectory& seed,
+                           const SmootherOptions& options)
+    : log(log), seed(seed), joints(est::jointSamples(log)) {
+  if (seed.nodes.size() != joints.size())
+    throw std::invalid_argument("smoother: the seed trajectory needs one node per joint sample");
+  for (size_t k = 0; k < joints.size(); ++k) {
+    if (nodes.empty() || k + 1 == joints.size() ||
+        joints[k].t - joints[nodes.back()].t >= options.node_period_s - 1e-9)
+      nodes.push_back(k);
+  }
+  three_axis_gyro = log.gyro.values.cols() == 3;
+  has_cmd = log.cmd.has_value();
+  accel_driven = log.accel && options.velocity != SmootherOptions::VelocityModel::kPerturbation;
+  if (options.velocity == SmootherOptions::VelocityModel::kAccelDriven && !log.accel)
+    throw std::invalid_argument("smoother: the accelerometer-driven model needs accel.csv");
+  gyro_period_s = io::medianPeriod(log.gyro);
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(log.gyro.size(), 3);
+  if (three_axis_gyro)
+    g = log.gyro.values;
+  else
+    g.col(2) = log.gyro.values.col(0);
+  gyro = IntegratedSignal(log.gyro.t, g);
+  if (log.accel) {
+    accel_period_s = io::medianPeriod(*log.accel);
+    accel = IntegratedSignal(log.accel->t, log.accel->values);
+  }
+  cmd.setZero(static_cast<Eigen::Index>(nodes.size()), 6);
+  if (has_cmd) {
+    for (size_t n = 0; n < nodes.size(); ++n)
+      cmd.row(static_cast<Eigen::Index>(n)) =
+          io::interpolateRow(*log.cmd, joints[nodes[n]].t).transpose();
+  }
+}
+
+namespace {
+
+/// Parameter blocks of one node. Quaternion storage: x, y, z, w.
+struct NodeBlocks {
+  double q[4], x[3], v[3], w[3], xi[6], b[3];
+};
+
+double seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Builds and owns one segment's problem.
+class SegmentBuilder {
+ public:
+  SegmentBuilder(const SmootherData& d, const SegmentSpec& spec, const SmootherOptions& o)
+      : d_(d), spec_(spec), o_(o), cfg_(d.log.config), n_(spec.last - spec.first + 1) {
+    ceres::Problem::Options po;
+    po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    problem_ = std::make_unique<ceres::Problem>(po);
+    if (!d.three_axis_gyro)
+      bias_manifold_ = std::make_unique<ceres::SubsetManifold>(3, std::vector<int>{0, 1});
+    switch (o.loss) {
+      case SmootherOptions::Loss::kHuber:
+        loss_ = std::make_unique<ceres::HuberLoss>(o.loss_scale);
+        break;
+      case SmootherOptions::Loss::kCauchy:
+        loss_ = std::make_unique<ceres::CauchyLoss>(o.loss_scale);
+        break;
+      case SmootherOptions::Loss::kNone:
+        break;
+    }
+    gyro_axes_ = d.three_axis_gyro ? Vec3d::Ones() : Vec3d(0, 0, 1);
+    seedStates();
+    markRest();
+  }
+
+  SegmentSolution solve();
+
+ private:
+  const est::TrajectoryNode& seedNode(size_t k) const {
+    return d_.seed.nodes[d_.nodes[spec_.first + k]];
+  }
+  const est::JointSample& joint(size_t k) const { return d_.joints[d_.nodes[spec_.first + k]]; }
+  double time(size_t k) const { return joint(k).t; }
+  bool randomWalkBias() const { return o_.bias_model == SmootherOptions::BiasModel::kRandomWalk; }
+  double* bias(size_t k) { return randomWalkBias() ? nodes_[k].b : segment_bias_; }
+
+  void seedStates();
+  void markRest();
+  void addParameterBlocks();
+  void addProcessResiduals(size_t k);
+  void addSlipResiduals(size_t k);
+  void addRestResiduals();
+  void addSunResiduals();
+  void addStartPrior();
+  std::vector<double*> orderedBlocks(int* node_dim, int* global_dim) const;
+  bool computeCovariance(SegmentSolution* out);
+
+  const SmootherData& d_;
+  const SegmentSpec& spec_;
+  const SmootherOptions& o_;
+  const io::RoverConfig& cfg_;
+  size_t n_;
+  std::vector<NodeBlocks> nodes_;
+  double segment_bias_[3] = {0, 0, 0};
+  std::vector<unsigned char> rest_;  ///< node inside a rest window's trimmed part
+  Vec3d gyro_axes_;
+  std::unique_ptr<ceres::Problem> problem_;
+  BodyQuaternionManifold quaternion_manifold_;
+  std::unique_ptr<ceres::Manifold> bias_manifold_;
+  std::unique_ptr<ceres::LossFunction> loss_;
+};
+
+void SegmentBuilder::seedStates() {
+  nodes_.resize(n_);
+  for (size_t k = 0; k < n_; ++k) {
+    const est::TrajectoryNode& s = seedNode(k);
+    NodeBlocks& b = nodes_[k];
+    Eigen::Map<Eigen::Vector4d>(b.q) = s.q_site_body.normalized().coeffs();  // x, y, z, w
+    Eigen::Map<Vec3d>(b.x) = s.p_site;
+    Eigen::Map<Vec3d>(b.v) = s.v_body;
+    Eigen::Map<Vec3d>(b.w) = s.w_body;
+    for (int i = 0; i < 6; ++i) b.xi[i] = s.xi[static_cast<size_t>(i)];
+    Eigen::Map<Vec3d>(b.b) = s.bias;
+  }
+  // Constant bias: the seed's at the segment's middle (the EKF has seen the first rest by then).
+  Eigen::Map<Vec3d>{segment_bias_} = seedNode(n_ / 2).bias;
+}
+
+void SegmentBuilder::markRest() {
+  rest_.assign(n_, 0);
+  if (!o_.use_rest) return;
+  for (const est::RestWindow* w : spec_.rests) {
+    for (size_t k = 0; k < n_; ++k) {
+      const double t = time(k);
+      if (t >= w->t_start + o_.rest_margin_s && t <= w->t_end - o_.rest_margin_s) rest_[k] = 1;
+    }
+  }
+}
+
+void SegmentBuilder::addParameterBlocks() {
+  for (size_t k = 0; k < n_; ++k) {
+    NodeBlocks& b = nodes_[k];
+    problem_->AddParameterBlock(b.q, 4, &quaternion_manifold_);
+    problem_->AddParameterBlock(b.x, 3);
+    problem_->AddParameterBlock(b.v, 3);
+    problem_->AddParameterBlock(b.w, 3);
+    problem_->AddParameterBlock(b.xi, 6);
+    if (randomWalkBias()) problem_->AddParameterBlock(b.b, 3, bias_manifold_.get());
+  }
+  if (!randomWalkBias()) problem_->AddParameterBlock(segment_bias_, 3, bias_manifold_.get());
+}
+
+void SegmentBuilder::addProcessResiduals(size_t k) {
+  NodeBlocks &a = nodes_[k], &b = nodes_[k + 1];
+  const double t0 = time(k), t1 = time(k + 1), dt = t1 - t0;
+  const bool at_rest = rest_[k] && rest_[k + 1];
+  const auto& pc = cfg_.process;
+  const Eigen::Index i0 = static_cast<Eigen::Index>(spec_.first + k), i1 = i0 + 1;
+  // Attitude (K-2/K-7) and position (K-1). Inside a rest window the rover does not move at all:
+  // the increments are held to the zero-rate / zero-velocity tolerance over Δt.
+  const double q_w = pc.rate_noise_rad_s2_per_sqrt_hz * pc.rate_noise_rad_s2_per_sqrt_hz;
+  const Vec3d att_info =
+      at_rest ? Vec3d::Constant(1.0 / (o_.zero_rate_sigma_rad_s * dt))
+              : AttitudeProcessResidual::sqrtInfo(dt, Vec3d::Constant(q_w), o_.attitude_floor_rad);
+  problem_->AddResidualBlock(AttitudeProcessResidual::Create(dt, att_info), nullptr, a.q, b.q, a.w,
+                             b.w);
+  const bool accel = d_.accel_driven && !at_rest;
+  const double q_a = cfg_.accel.noise_mps2 * cfg_.accel.noise_mps2 * d_.accel_period_s;
+  const double q_v =
+      accel ? q_a : pc.velocity_noise_mps2_per_sqrt_hz * pc.velocity_noise_mps2_per_sqrt_hz;
+  const double pos_info = at_rest ? 1.0 / (o_.zero_velocity_sigma_mps * dt)
+                                  : PositionProcessResidual::sqrtInfo(dt, q_v, o_.position_floor_m);
+  problem_->AddResidualBlock(PositionProcessResidual::Create(dt, pos_info), nullptr, a.x, b.x, a.q,
+                             b.q, a.v, b.v);
+  // Rate and velocity perturbations (K-1, K-2): around the command when there is one, random
+  // walks otherwise (K §4.2); the velocity driven by the accelerometer instead (O-4).
+  const Vec3d a_w = Vec3d::Constant(d_.has_cmd ? -1.0 / pc.rate_time_constant_s : 0.0);
+  problem_->AddResidualBlock(
+      new MarkovProcessResidual<3>(dt, a_w, Vec3d::Constant(q_w), d_.cmd.row(i0).tail<3>(),
+                                   d_.cmd.row(i1).tail<3>()),
+      nullptr, a.w, b.w);
+  if (accel) {
+    const Vec3d mean_accel = d_.accel.integral(t0, t1) / dt;
+    problem_->AddResidualBlock(
+        AccelVelocityProcessResidual::Create(dt, mean_accel, cfg_.accel.lever_arm_m,
+                                             cfg_.gravity_mps2, 1.0 / std::sqrt(q_a * dt + 1e-12)),
+        nullptr, a.q, b.q, a.v, b.v, a.w, b.w);
+  } else {
+    const Vec3d a_v = Vec3d::Constant(d_.has_cmd ? -1.0 / pc.velocity_time_constant_s : 0.0);
+    problem_->AddResidualBlock(
+        new MarkovProcessResidual<3>(dt, a_v, Vec3d::Constant(q_v), d_.cmd.row(i0).head<3>(),
+                                     d_.cmd.row(i1).head<3>()),
+        nullptr, a.v, b.v);
+  }
+  // Contact angles (K-8).
+  const double n_xi = pc.contact_angle_noise_rad_per_sqrt_s;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  problem_->AddResidualBlock(
+      new MarkovProcessResidual<6>(dt, Vec6::Constant(-1.0 / pc.contact_angle_time_constant_s),
+                                   Vec6::Constant(n_xi * n_xi), Vec6::Zero(), Vec6::Zero()),
+      nullptr, a.xi, b.xi);
+  // Gyro increments (K-12/K-13 integrated; O-1), except inside rest windows, whose readings
+  // the rest-bias residual carries.
+  if (!at_rest) {
+    const double sigma = cfg_.gyro.noise_rad_s * std::sqrt(d_.gyro_period_s * dt);
+    problem_->AddResidualBlock(
+        GyroIncrementResidual::Create(dt, d_.gyro.integral(t0, t1), gyro_axes_ / sigma), nullptr,
+        a.q, b.q, bias(k));
+  }
+  if (randomWalkBias()) {  // K-9
+    const double s = cfg_.gyro.bias_random_walk_rad_s_per_sqrt_s;
+    problem_->AddResidualBlock(
+        new MarkovProcessResidual<3>(dt, Vec3d::Zero(), Vec3d::Constant(s * s), Vec3d::Zero(),
+                                     Vec3d::Zero()),
+        nullptr, a.b, b.b);
+  }
+}
+
+void SegmentBuilder::addSlipResiduals(size_t k) {
+  const est::JointSample& js = joint(k);
+  NodeBlocks& b = nodes_[k];
+  const Eigen::Index row = static_cast<Eigen::Index>(spec_.first + k);
+  const est::TrajectoryNode& s = seedNode(k);
+  const Twistd nominal_twist =
+      d_.has_cmd ? rover::nominalBodyTwist(d_.log.geometry, d_.cmd(row, 0), d_.cmd(row, 5))
+                 : rover::nominalBodyTwist(d_.log.geometry, s.v_body.x(), s.w_body.z());
+  for (int i = 0; i < rover::kNumWheels; ++i) {
+    const double radius = d_.log.geometry.wheels[i].radius;
+    Eigen::Matrix<double, 4, 7> J;
+    rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], s.v_body,
+                                      s.w_body, s.xi[static_cast<size_t>(i)], &J);
+    const Eigen::Matrix4d R =
+        est::slipCovariance(cfg_.slip_noise, js, i, s.v_body, s.w_body, J.leftCols<6>());
+    const Vec4d nominal =
+        rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, js.joint_twist[i]);
+    problem_->AddResidualBlock(new SlipResidual(i, js.T_body_wheel[i], radius, js.joint_twist[i],
+                                                nominal, sqrtInformation<4>(R, "slip")),
+                               loss_.get(), b.v, b.w, b.xi);
+  }
+}
+
+void SegmentBuilder::addRestResiduals() {
+  for (size_t k = 0; k < n_; ++k) {
+    if (!rest_[k]) continue;
+    problem_->AddResidualBlock(new ZeroMotionResidual(o_.zero_velocity_sigma_mps), nullptr,
+                               nodes_[k].v);
+    problem_->AddResidualBlock(new ZeroMotionResidual(o_.zero_rate_sigma_rad_s), nullptr,
+                               nodes_[k].w);
+  }
+  if (!o_.use_rest) return;
+  for (const est::RestWindow* w : spec_.rests) {
+    // The window's trimmed nodes [first, last]: their gyro readings give the bias (the gyro
+    // increments skip these intervals), the middle node the roll/pitch from gravity.
+    size_t first = n_, last = 0;
+    for (size_t k = 0; k < n_; ++k) {
+      const double t = time(k);
+      if (t >= w->t_start + o_.rest_margin_s && t <= w->t_end - o_.rest_margin_s)
+        first = std::min(first, k), last = std::max(last, k);
+    }
+    if (first >= last) continue;
+    const double duration = time(last) - time(first);
+    const Vec3d mean = d_.gyro.integral(time(first), time(last)) / duration;
+    const double sigma = cfg_.gyro.noise_rad_s * std::sqrt(d_.gyro_period_s / duration);
+    const size_t mid = (first + last) / 2;
+    problem_->AddResidualBlock(new RestBiasResidual(mean, gyro_axes_ / sigma), nullptr, bias(mid));
+    if (w->has_gravity) {
+      problem_->AddResidualBlock(
+          GravityResidual::Create(w->roll_pitch.roll_pitch,
+                                  sqrtInformation<2>(w->roll_pitch.covariance, "gravity")),
+          nullptr, nodes_[mid].q);
+    }
+  }
+}
+
+void SegmentBuilder::addSunResiduals() {
+  if (!o_.use_sun || !d_.log.sun) return;
+  const io::Stream& sun = *d_.log.sun;
+  const sensors::SunSensorGeometry geo{cfg_.sun_sensor.R_body_sensor,
+                                       0.5 * cfg_.sun_sensor.field_of_view_rad};
+  const double t_first = time(0), t_last = time(n_ - 1);
+  const double* begin = sun.t.data();
+  Eigen::Index j = std::lower_bound(begin, begin + sun.size(), t_first) - begin;
+  size_t k = 0;
+  for (; j < sun.size() && sun.t[j] <= t_last; ++j) {
+    if (sun.values(j, 2) < 0.5) continue;  // valid = 0
+    const double t = sun.t[j];
+    while (k + 2 < n_ && time(k + 1) <= t) ++k;
+    const double u = std::clamp((t - time(k)) / (time(k + 1) - time(k)), 0.0, 1.0);
+    const Vec3d sun_site = cfg_.sun.directionAt(t);
+    const Quatd q_seed = so3::boxplus(
+        seedNode(k).q_site_body,
+        Vec3d(u * so3::boxminus(seedNode(k + 1).q_site_body, seedNode(k).q_site_body)));
+    if (sensors::sunOffBoresight(q_seed, geo, sun_site) > geo.half_fov_rad + 0.1) continue;
+    problem_->AddResidualBlock(
+        SunSensorResidual::Create(u, sun.values.row(j).head<2>().transpose(), sun_site, geo,
+                                  1.0 / cfg_.sun_sensor.noise),
+        loss_.get(), nodes_[k].q, nodes_[k + 1].q);
+  }
+}
+
+void SegmentBuilder::addStartPrior() {
+  const est::TrajectoryNode& s = seedNode(0);
+  Mat6d cov = Mat6d::Zero();
+  cov.topLeftCorner<3, 3>() =
+      Mat3d::Identity() * o_.start_position_sigma_m * o_.start_position_sigma_m;
+  cov.bottomRightCorner<3, 3>() = s.covariance.bottomRightCorner<3, 3>();
+  cov.bottomRightCorner<3, 3>().diagonal().array() += 1e-12;
+  problem_->AddResidualBlock(
+      StartPriorResidual::Create(s.q_site_body, s.p_site, sqrtInformation<6>(cov, "start prior")),
+      nullptr, nodes_[0].q, nodes_[0].x);
+  // Contact angles start from the stationary distribution of K-8: ξ ~ N(0, n_ξ² τ / 2).
+  const auto& pc = cfg_.process;
+  const double sigma_xi =
+      pc.contact_angle_noise_rad_per_sqrt_s * std::sqrt(0.5 * pc.contact_angle_time_constant_s);
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  problem_->AddResidualBlock(new StationaryPriorResidual<6>(Vec6::Constant(sigma_xi)), nullptr,
+                             nodes_[0].xi);
+  // Without a rest window the bias keeps the EKF's estimate as a prior.
+  if (spec_.rests.empty() || !o_.use_rest) {
+    const Vec3d sigma = s.bias_sigma.cwiseMax(1e-6);
+    problem_->AddResidualBlock(new RestBiasResidual(s.bias, sigma.cwiseInverse()), nullptr,
+                               bias(0));
+  }
+}
+
+}  // namespace
+
+namespace {
+
+std::vector<double*> SegmentBuilder::orderedBlocks(int* node_dim, int* global_dim) const {
+  // Tangent order per node: δθ (3), x, v, ω, ξ [, b]; then the segment bias (global).
+  std::vector<double*> blocks;
+  auto& nodes = const_cast<std::vector<NodeBlocks>&>(nodes_);
+  const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
+  for (NodeBlocks& b : nodes) {
+    for (double* p : {b.q, b.x, b.v, b.w, b.xi}) blocks.push_back(p);
+    if (randomWalkBias()) blocks.push_back(b.b);
+  }
+  *node_dim = 18 + (randomWalkBias() ? bias_dim : 0);
+  *global_dim = randomWalkBias() ? 0 : bias_dim;
+  if (!randomWalkBias()) blocks.push_back(const_cast<double*>(segment_bias_));
+  return blocks;
+}
+
+bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
+  int node_dim = 0, global_dim = 0;
+  ceres::Problem::EvaluateOptions eo;
+  eo.parameter_blocks = orderedBlocks(&node_dim, &global_dim);
+  eo.apply_loss_function = true;
+  eo.num_threads = 1;
+  ceres::CRSMatrix J;
+  if (!problem_->Evaluate(eo, nullptr, nullptr, nullptr, &J)) return false;
+  const est::ChainInformation H =
+      est::chainInformationFromJacobian(J, static_cast<int>(n_), node_dim, global_dim);
+  const est::ChainMarginals m = est::chainMarginals(H);
+  if (!m.ok) return false;
+  // Bias axes in the tangent: all three, or z only (heading-only gyro, x and y held).
+  const std::vector<int> axes = bias_manifold_ ? std::vector<int>{2} : std::vector<int>{0, 1, 2};
+  for (size_t k = 0; k < n_; ++k) {
+    const Eigen::MatrixXd& S = m.node[k];
+    est::TrajectoryNode& node = out->nodes[k];
+    node.covariance.topLeftCorner<3, 3>() = S.block<3, 3>(3, 3);
+    node.covariance.bottomRightCorner<3, 3>() = S.block<3, 3>(0, 0);
+    node.covariance.topRightCorner<3, 3>() = S.block<3, 3>(3, 0);
+    node.covariance.bottomLeftCorner<3, 3>() = S.block<3, 3>(0, 3);
+    node.bias_sigma.setZero();
+    for (size_t a = 0; a < axes.size(); ++a) {
+      const double var = randomWalkBias() ? S(18 + static_cast<int>(a), 18 + static_cast<int>(a))
+                                          : m.global(static_cast<int>(a), static_cast<int>(a));
+      node.bias_sigma[axes[a]] = std::sqrt(std::max(var, 0.0));
+    }
+  }
+  return true;
+}
+
+SegmentSolution SegmentBuilder::solve() {
+  SegmentSolution out;
+  SegmentSummary& sum = out.summary;
+  const auto t0 = std::chrono::steady_clock::now();
+  addParameterBlocks();
+  for (size_t k = 0; k + 1 < n_; ++k) addProcessResiduals(k);
+  if (o_.use_slip) {
+    for (size_t k = 0; k < n_; ++k) addSlipResiduals(k);
+  }
+  addRestResiduals();
+  addSunResiduals();
+  addStartPrior();
+  sum.residual_blocks = problem_->NumResidualBlocks();
+  sum.parameters = problem_->NumParameters();
+
+  ceres::Solver::Options so;
+  so.minimizer_type = ceres::TRUST_REGION;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  so.max_num_iterations = o_.max_iterations;
+  so.function_tolerance = o_.function_tolerance;
+  so.gradient_tolerance = o_.gradient_tolerance;
+  so.parameter_tolerance = o_.parameter_tolerance;
+  so.num_threads = 1;  // segments run in parallel; one thread each keeps results reproducible
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, problem_.get(), &summary);
+  sum.solve_seconds = seconds(t0);
+  sum.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  sum.initial_cost = summary.initial_cost;
+  sum.final_cost = summary.final_cost;
+
+  bool finite = std::isfinite(summary.final_cost);
+  for (const NodeBlocks& b : nodes_) {
+    for (double v : b.q) finite = finite && std::isfinite(v);
+    for (double v : b.x) finite = finite && std::isfinite(v);
+  }
+  if (summary.termination_type == ceres::CONVERGENCE && finite)
+    sum.status = "converged";
+  else if (summary.termination_type == ceres::NO_CONVERGENCE && finite &&
+           summary.final_cost <= summary.initial_cost)
+    sum.status = "no_convergence";
+  else
+    sum.status = "fallback_ekf";
+
+  out.nodes.resize(n_);
+  for (size_t k = 0; k < n_; ++k) {
+    est::TrajectoryNode& node = out.nodes[k];
+    if (sum.status == "fallback_ekf") {
+      node = seedNode(k);
+      continue;
+    }
+    const NodeBlocks& b = nodes_[k];
+    node.t = time(k);
+    node.q_site_body = Quatd(Eigen::Map<const Eigen::Vector4d>(b.q)).normalized();
+    node.p_site = Eigen::Map<const Vec3d>(b.x);
+    node.v_body = Eigen::Map<const Vec3d>(b.v);
+    node.w_body = Eigen::Map<const Vec3d>(b.w);
+    for (int i = 0; i < 6; ++i) node.xi[static_cast<size_t>(i)] = b.xi[i];
+    node.bias = Eigen::Map<const Vec3d>(randomWalkBias() ? b.b : segment_bias_);
+  }
+  if (sum.status != "fallback_ekf" && o_.covariance) {
+    const auto tc = std::chrono::steady_clock::now();
+    out.has_covariance = computeCovariance(&out);
+    sum.covariance_seconds = seconds(tc);
+  }
+  if (sum.status == "fallback_ekf") out.has_covariance = true;  // the EKF's
+  const est::TrajectoryNode& mid = out.nodes[n_ / 2];
+  out.bias = mid.bias, out.bias_sigma = mid.bias_sigma;
+  sum.num_nodes = n_;
+  sum.t_start = time(0), sum.t_end = time(n_ - 1);
+  return out;
+}
+
+}  // namespace
+
+SegmentSolution solveSegment(const SmootherData& data, const SegmentSpec& spec,
+                             const SmootherOptions& options) {
+  if (spec.last <= spec.first || spec.last >= data.nodes.size())
+    throw std::invalid_argument("smoother: a segment needs at least two nodes");
+  SegmentBuilder builder(data, spec, options);
+  return builder.solve();
+}
+
+}  // namespace traverse::smoother
