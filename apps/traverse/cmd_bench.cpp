@@ -24,6 +24,7 @@ struct BenchOptions {
   std::string json;
   std::vector<std::string> overrides;
   int jobs = 0;
+  bool no_smoother = false;
   PipelineOptions pipeline;
 };
 
@@ -31,7 +32,9 @@ eval::MetricsReport oneRun(const sim::Scenario& sc, const std::filesystem::path&
                            uint64_t seed, const est::PipelineConfig& config) {
   const sim::Simulation s = sim::simulate(sc, rover_dir, seed);
   const est::Estimates e = est::estimate(s.log, config);
-  return eval::evaluateAll(sc.name + "#" + std::to_string(seed), {e.dr, e.ekf.trajectory},
+  std::vector<est::Trajectory> trajectories{e.dr, e.ekf.trajectory};
+  if (e.smoothed) trajectories.push_back(e.smoothed->trajectory);
+  return eval::evaluateAll(sc.name + "#" + std::to_string(seed), trajectories,
                            eval::TruthTrajectory(*s.log.truth));
 }
 
@@ -58,12 +61,17 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::IsMember({"auto", "perturbation", "accel"}));
   cmd->add_flag("--no-sun", opt->pipeline.no_sun, "EKF without the sun sensor");
   cmd->add_flag("--no-slip", opt->pipeline.no_slip, "EKF without the slip constraint");
+  cmd->add_flag("--no-smoother", opt->no_smoother, "Dead reckoning and the EKF only");
+  addSmootherOptions(*cmd, opt->pipeline);
   return [cmd, opt, &global]() {
     if (!*cmd) return -1;
     const std::filesystem::path data = datasetsDir();
     const sim::Scenario sc = sim::loadScenario(opt->scenario, data, opt->overrides);
     const std::filesystem::path rover_dir = sim::roverDirectory(sc, data);
-    const est::PipelineConfig config = pipelineConfig(opt->pipeline);
+    est::PipelineConfig config = pipelineConfig(opt->pipeline);
+    config.smooth = !opt->no_smoother;
+    // Runs are parallel already: one thread per run's segments unless asked otherwise.
+    if (opt->pipeline.threads == 0) config.smoother.threads = 1;
     std::vector<eval::MetricsReport> reports(static_cast<size_t>(opt->runs));
     std::atomic<long> next{0}, done{0};
     std::mutex err_mutex;

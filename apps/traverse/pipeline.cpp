@@ -53,6 +53,7 @@ void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
   cmd.add_option("--threads", o.threads, "Segments solved in parallel (0: all cores)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd.add_flag("--solver-report", o.solver_report, "Print Ceres' report for every segment");
   cmd.add_flag("--no-covariance", o.no_covariance,
                "Skip the smoother's marginal covariances (σ columns then come from the EKF)");
 }
@@ -82,6 +83,7 @@ est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   so.max_iterations = o.max_iterations;
   so.threads = o.threads;
   so.covariance = !o.no_covariance;
+  so.solver_report = o.solver_report;
   using SVM = smoother::SmootherOptions::VelocityModel;
   so.velocity = o.velocity_model == "accel"          ? SVM::kAccelDriven
                 : o.velocity_model == "perturbation" ? SVM::kPerturbation

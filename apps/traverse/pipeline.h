@@ -24,7 +24,7 @@ struct PipelineOptions {
   double loss_scale = 3.0;
   int max_iterations = 50;
   int threads = 0;
-  bool no_covariance = false;
+  bool no_covariance = false, solver_report = false;
 };
 
 void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);

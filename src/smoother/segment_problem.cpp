@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <iostream>
 #include <memory>
 
 #include <ceres/ceres.h>
@@ -427,6 +428,7 @@ SegmentSolution SegmentBuilder::solve() {
   addStartPrior();
   sum.residual_blocks = problem_->NumResidualBlocks();
   sum.parameters = problem_->NumParameters();
+  sum.build_seconds = seconds(t0);
 
   ceres::Solver::Options so;
   so.minimizer_type = ceres::TRUST_REGION;
@@ -442,6 +444,7 @@ SegmentSolution SegmentBuilder::solve() {
   ceres::Solver::Summary summary;
   ceres::Solve(so, problem_.get(), &summary);
   sum.solve_seconds = seconds(t0);
+  if (o_.solver_report) std::cerr << summary.FullReport() << "\n";
   sum.iterations = static_cast<int>(summary.iterations.size()) - 1;
   sum.initial_cost = summary.initial_cost;
   sum.final_cost = summary.final_cost;

@@ -48,6 +48,7 @@ struct SmootherOptions {
   double function_tolerance = 1e-10, gradient_tolerance = 1e-12, parameter_tolerance = 1e-10;
   int threads = 0;  ///< segments solved in parallel (0: all cores)
   bool covariance = true;
+  bool solver_report = false;  ///< print Ceres' full report per segment to stderr
 };
 
 /// What the smoother reports per segment (segments.csv adds the bias and solver columns).
@@ -60,7 +61,8 @@ struct SegmentSummary {
   std::string status;  ///< converged | no_convergence | fallback_ekf
   int iterations = 0;
   double initial_cost = 0.0, final_cost = 0.0;  ///< ½ Σ ‖r‖² (robust), at the seed and solution
-  double solve_seconds = 0.0, covariance_seconds = 0.0;
+  double solve_seconds = 0.0, covariance_seconds = 0.0;  ///< solve includes building
+  double build_seconds = 0.0;
   int residual_blocks = 0, parameters = 0;
   double stitch_translation_m = 0.0, stitch_rotation_rad = 0.0;
 };
