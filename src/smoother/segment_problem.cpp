@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <memory>
 
 #include <ceres/ceres.h>
@@ -16,6 +17,7 @@
 #include "traverse/smoother/residuals/attitude_process.h"
 #include "traverse/smoother/residuals/gravity_residual.h"
 #include "traverse/smoother/residuals/gyro_increment.h"
+#include "traverse/smoother/residuals/interpolation.h"
 #include "traverse/smoother/residuals/markov_process.h"
 #include "traverse/smoother/residuals/position_process.h"
 #include "traverse/smoother/residuals/rest_bias_residual.h"
@@ -112,6 +114,7 @@ class SegmentBuilder {
     gyro_axes_ = d.three_axis_gyro ? Vec3d::Ones() : Vec3d(0, 0, 1);
     seedStates();
     markRest();
+    makeSeedConsistent();
   }
 
   SegmentSolution solve();
@@ -125,8 +128,15 @@ class SegmentBuilder {
   bool randomWalkBias() const { return o_.bias_model == SmootherOptions::BiasModel::kRandomWalk; }
   double* bias(size_t k) { return randomWalkBias() ? nodes_[k].b : segment_bias_; }
 
+  template <typename... Blocks>
+  void add(const char* kind, ceres::CostFunction* f, ceres::LossFunction* loss, Blocks*... blocks) {
+    const ceres::ResidualBlockId id = problem_->AddResidualBlock(f, loss, blocks...);
+    if (o_.solver_report) by_kind_[kind].push_back(id);
+  }
+  void reportCostByKind() const;
   void seedStates();
   void markRest();
+  void makeSeedConsistent();
   void addParameterBlocks();
   void addProcessResiduals(size_t k);
   void addSlipResiduals(size_t k);
@@ -149,7 +159,22 @@ class SegmentBuilder {
   BodyQuaternionManifold quaternion_manifold_;
   std::unique_ptr<ceres::Manifold> bias_manifold_;
   std::unique_ptr<ceres::LossFunction> loss_;
+  std::map<std::string, std::vector<ceres::ResidualBlockId>> by_kind_;
 };
+
+/// Cost ½ Σ ρ(‖r‖²) of each kind of residual at the current states (solver_report only).
+void SegmentBuilder::reportCostByKind() const {
+  std::cerr << "segment " << time(0) << " .. " << time(n_ - 1) << " s (" << n_
+            << " nodes), cost by residual:";
+  for (const auto& [kind, ids] : by_kind_) {
+    ceres::Problem::EvaluateOptions eo;
+    eo.residual_blocks = ids;
+    double cost = 0.0;
+    problem_->Evaluate(eo, &cost, nullptr, nullptr, nullptr);
+    std::cerr << " " << kind << " " << cost << " (" << ids.size() << ")";
+  }
+  std::cerr << "\n";
+}
 
 void SegmentBuilder::seedStates() {
   nodes_.resize(n_);
@@ -165,6 +190,40 @@ void SegmentBuilder::seedStates() {
   }
   // Constant bias: the seed's at the segment's middle (the EKF has seen the first rest by then).
   Eigen::Map<Vec3d>{segment_bias_} = seedNode(n_ / 2).bias;
+}
+
+void SegmentBuilder::makeSeedConsistent() {
+  // The EKF's nodes are snapshots of a filter whose attitude jumps at updates and whose rate
+  // carries the gyro's noise: its rates disagree with its own attitude increments, and at rest
+  // they are not zero. Seeding the rates from the increments, zero motion at rest, and the
+  // positions from the process (K-1) starts Levenberg-Marquardt near the process manifold —
+  // fewer iterations, same optimum.
+  std::vector<Vec3d> inc(n_ > 0 ? n_ - 1 : 0);
+  for (size_t k = 0; k + 1 < n_; ++k) {
+    const Quatd qa(Eigen::Map<const Eigen::Vector4d>(nodes_[k].q));
+    const Quatd qb(Eigen::Map<const Eigen::Vector4d>(nodes_[k + 1].q));
+    inc[k] = so3::boxminus(qb, qa) / (time(k + 1) - time(k));
+  }
+  for (size_t k = 0; k < n_; ++k) {
+    NodeBlocks& b = nodes_[k];
+    if (rest_[k]) {
+      Eigen::Map<Vec3d>{b.v}.setZero();
+      Eigen::Map<Vec3d>{b.w}.setZero();
+    } else if (n_ > 1) {
+      const Vec3d w = k == 0        ? inc[0]
+                      : k + 1 == n_ ? inc[k - 1]
+                                    : Vec3d(0.5 * (inc[k - 1] + inc[k]));
+      Eigen::Map<Vec3d>{b.w} = w;
+    }
+  }
+  for (size_t k = 0; k + 1 < n_; ++k) {
+    NodeBlocks &a = nodes_[k], &b = nodes_[k + 1];
+    const Quatd qa(Eigen::Map<const Eigen::Vector4d>(a.q));
+    const Quatd qb(Eigen::Map<const Eigen::Vector4d>(b.q));
+    const Quatd q_mid = interpolateAttitude(qa, qb, 0.5);
+    const Vec3d v_mid = 0.5 * (Eigen::Map<const Vec3d>(a.v) + Eigen::Map<const Vec3d>(b.v));
+    Eigen::Map<Vec3d>{b.x} = Eigen::Map<const Vec3d>(a.x) + q_mid * v_mid * (time(k + 1) - time(k));
+  }
 }
 
 void SegmentBuilder::markRest() {
@@ -203,32 +262,31 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
   const Vec3d att_info =
       at_rest ? Vec3d::Constant(1.0 / (o_.zero_rate_sigma_rad_s * dt))
               : AttitudeProcessResidual::sqrtInfo(dt, Vec3d::Constant(q_w), o_.attitude_floor_rad);
-  problem_->AddResidualBlock(AttitudeProcessResidual::Create(dt, att_info), nullptr, a.q, b.q, a.w,
-                             b.w);
+  add("attitude", AttitudeProcessResidual::Create(dt, att_info), nullptr, a.q, b.q, a.w, b.w);
   const bool accel = d_.accel_driven && !at_rest;
   const double q_a = cfg_.accel.noise_mps2 * cfg_.accel.noise_mps2 * d_.accel_period_s;
   const double q_v =
       accel ? q_a : pc.velocity_noise_mps2_per_sqrt_hz * pc.velocity_noise_mps2_per_sqrt_hz;
   const double pos_info = at_rest ? 1.0 / (o_.zero_velocity_sigma_mps * dt)
                                   : PositionProcessResidual::sqrtInfo(dt, q_v, o_.position_floor_m);
-  problem_->AddResidualBlock(PositionProcessResidual::Create(dt, pos_info), nullptr, a.x, b.x, a.q,
-                             b.q, a.v, b.v);
+  add("position", PositionProcessResidual::Create(dt, pos_info), nullptr, a.x, b.x, a.q, b.q, a.v,
+      b.v);
   // Rate and velocity perturbations (K-1, K-2): around the command when there is one, random
   // walks otherwise (K §4.2); the velocity driven by the accelerometer instead (O-4).
   const Vec3d a_w = Vec3d::Constant(d_.has_cmd ? -1.0 / pc.rate_time_constant_s : 0.0);
-  problem_->AddResidualBlock(
+  add("rate",
       new MarkovProcessResidual<3>(dt, a_w, Vec3d::Constant(q_w), d_.cmd.row(i0).tail<3>(),
                                    d_.cmd.row(i1).tail<3>()),
       nullptr, a.w, b.w);
   if (accel) {
     const Vec3d mean_accel = d_.accel.integral(t0, t1) / dt;
-    problem_->AddResidualBlock(
+    add("accel_velocity",
         AccelVelocityProcessResidual::Create(dt, mean_accel, cfg_.accel.lever_arm_m,
                                              cfg_.gravity_mps2, 1.0 / std::sqrt(q_a * dt + 1e-12)),
         nullptr, a.q, b.q, a.v, b.v, a.w, b.w);
   } else {
     const Vec3d a_v = Vec3d::Constant(d_.has_cmd ? -1.0 / pc.velocity_time_constant_s : 0.0);
-    problem_->AddResidualBlock(
+    add("velocity",
         new MarkovProcessResidual<3>(dt, a_v, Vec3d::Constant(q_v), d_.cmd.row(i0).head<3>(),
                                      d_.cmd.row(i1).head<3>()),
         nullptr, a.v, b.v);
@@ -236,7 +294,7 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
   // Contact angles (K-8).
   const double n_xi = pc.contact_angle_noise_rad_per_sqrt_s;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
-  problem_->AddResidualBlock(
+  add("contact",
       new MarkovProcessResidual<6>(dt, Vec6::Constant(-1.0 / pc.contact_angle_time_constant_s),
                                    Vec6::Constant(n_xi * n_xi), Vec6::Zero(), Vec6::Zero()),
       nullptr, a.xi, b.xi);
@@ -244,13 +302,12 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
   // the rest-bias residual carries.
   if (!at_rest) {
     const double sigma = cfg_.gyro.noise_rad_s * std::sqrt(d_.gyro_period_s * dt);
-    problem_->AddResidualBlock(
-        GyroIncrementResidual::Create(dt, d_.gyro.integral(t0, t1), gyro_axes_ / sigma), nullptr,
-        a.q, b.q, bias(k));
+    add("gyro", GyroIncrementResidual::Create(dt, d_.gyro.integral(t0, t1), gyro_axes_ / sigma),
+        nullptr, a.q, b.q, bias(k));
   }
   if (randomWalkBias()) {  // K-9
     const double s = cfg_.gyro.bias_random_walk_rad_s_per_sqrt_s;
-    problem_->AddResidualBlock(
+    add("bias_walk",
         new MarkovProcessResidual<3>(dt, Vec3d::Zero(), Vec3d::Constant(s * s), Vec3d::Zero(),
                                      Vec3d::Zero()),
         nullptr, a.b, b.b);
@@ -274,19 +331,18 @@ void SegmentBuilder::addSlipResiduals(size_t k) {
         est::slipCovariance(cfg_.slip_noise, js, i, s.v_body, s.w_body, J.leftCols<6>());
     const Vec4d nominal =
         rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, js.joint_twist[i]);
-    problem_->AddResidualBlock(new SlipResidual(i, js.T_body_wheel[i], radius, js.joint_twist[i],
-                                                nominal, sqrtInformation<4>(R, "slip")),
-                               loss_.get(), b.v, b.w, b.xi);
+    add("slip",
+        new SlipResidual(i, js.T_body_wheel[i], radius, js.joint_twist[i], nominal,
+                         sqrtInformation<4>(R, "slip")),
+        loss_.get(), b.v, b.w, b.xi);
   }
 }
 
 void SegmentBuilder::addRestResiduals() {
   for (size_t k = 0; k < n_; ++k) {
     if (!rest_[k]) continue;
-    problem_->AddResidualBlock(new ZeroMotionResidual(o_.zero_velocity_sigma_mps), nullptr,
-                               nodes_[k].v);
-    problem_->AddResidualBlock(new ZeroMotionResidual(o_.zero_rate_sigma_rad_s), nullptr,
-                               nodes_[k].w);
+    add("zero_velocity", new ZeroMotionResidual(o_.zero_velocity_sigma_mps), nullptr, nodes_[k].v);
+    add("zero_rate", new ZeroMotionResidual(o_.zero_rate_sigma_rad_s), nullptr, nodes_[k].w);
   }
   if (!o_.use_rest) return;
   for (const est::RestWindow* w : spec_.rests) {
@@ -303,9 +359,9 @@ void SegmentBuilder::addRestResiduals() {
     const Vec3d mean = d_.gyro.integral(time(first), time(last)) / duration;
     const double sigma = cfg_.gyro.noise_rad_s * std::sqrt(d_.gyro_period_s / duration);
     const size_t mid = (first + last) / 2;
-    problem_->AddResidualBlock(new RestBiasResidual(mean, gyro_axes_ / sigma), nullptr, bias(mid));
+    add("rest_bias", new RestBiasResidual(mean, gyro_axes_ / sigma), nullptr, bias(mid));
     if (w->has_gravity) {
-      problem_->AddResidualBlock(
+      add("gravity",
           GravityResidual::Create(w->roll_pitch.roll_pitch,
                                   sqrtInformation<2>(w->roll_pitch.covariance, "gravity")),
           nullptr, nodes_[mid].q);
@@ -332,7 +388,7 @@ void SegmentBuilder::addSunResiduals() {
         seedNode(k).q_site_body,
         Vec3d(u * so3::boxminus(seedNode(k + 1).q_site_body, seedNode(k).q_site_body)));
     if (sensors::sunOffBoresight(q_seed, geo, sun_site) > geo.half_fov_rad + 0.1) continue;
-    problem_->AddResidualBlock(
+    add("sun",
         SunSensorResidual::Create(u, sun.values.row(j).head<2>().transpose(), sun_site, geo,
                                   1.0 / cfg_.sun_sensor.noise),
         loss_.get(), nodes_[k].q, nodes_[k + 1].q);
@@ -346,7 +402,7 @@ void SegmentBuilder::addStartPrior() {
       Mat3d::Identity() * o_.start_position_sigma_m * o_.start_position_sigma_m;
   cov.bottomRightCorner<3, 3>() = s.covariance.bottomRightCorner<3, 3>();
   cov.bottomRightCorner<3, 3>().diagonal().array() += 1e-12;
-  problem_->AddResidualBlock(
+  add("start_prior",
       StartPriorResidual::Create(s.q_site_body, s.p_site, sqrtInformation<6>(cov, "start prior")),
       nullptr, nodes_[0].q, nodes_[0].x);
   // Contact angles start from the stationary distribution of K-8: ξ ~ N(0, n_ξ² τ / 2).
@@ -354,13 +410,12 @@ void SegmentBuilder::addStartPrior() {
   const double sigma_xi =
       pc.contact_angle_noise_rad_per_sqrt_s * std::sqrt(0.5 * pc.contact_angle_time_constant_s);
   using Vec6 = Eigen::Matrix<double, 6, 1>;
-  problem_->AddResidualBlock(new StationaryPriorResidual<6>(Vec6::Constant(sigma_xi)), nullptr,
-                             nodes_[0].xi);
+  add("contact_prior", new StationaryPriorResidual<6>(Vec6::Constant(sigma_xi)), nullptr,
+      nodes_[0].xi);
   // Without a rest window the bias keeps the EKF's estimate as a prior.
   if (spec_.rests.empty() || !o_.use_rest) {
     const Vec3d sigma = s.bias_sigma.cwiseMax(1e-6);
-    problem_->AddResidualBlock(new RestBiasResidual(s.bias, sigma.cwiseInverse()), nullptr,
-                               bias(0));
+    add("bias_prior", new RestBiasResidual(s.bias, sigma.cwiseInverse()), nullptr, bias(0));
   }
 }
 
@@ -430,6 +485,7 @@ SegmentSolution SegmentBuilder::solve() {
   sum.parameters = problem_->NumParameters();
   sum.build_seconds = seconds(t0);
 
+  if (o_.solver_report) reportCostByKind();
   ceres::Solver::Options so;
   so.minimizer_type = ceres::TRUST_REGION;
   so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
@@ -440,11 +496,16 @@ SegmentSolution SegmentBuilder::solve() {
   so.gradient_tolerance = o_.gradient_tolerance;
   so.parameter_tolerance = o_.parameter_tolerance;
   so.num_threads = 1;  // segments run in parallel; one thread each keeps results reproducible
-  so.logging_type = ceres::SILENT;
+  so.logging_type = o_.solver_report ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  so.minimizer_progress_to_stdout = o_.solver_report;
+  so.initial_trust_region_radius = o_.initial_trust_region_radius;
   ceres::Solver::Summary summary;
   ceres::Solve(so, problem_.get(), &summary);
   sum.solve_seconds = seconds(t0);
-  if (o_.solver_report) std::cerr << summary.FullReport() << "\n";
+  if (o_.solver_report) {
+    std::cerr << summary.FullReport() << "\nproblem built in " << sum.build_seconds << " s\n";
+    reportCostByKind();
+  }
   sum.iterations = static_cast<int>(summary.iterations.size()) - 1;
   sum.initial_cost = summary.initial_cost;
   sum.final_cost = summary.final_cost;

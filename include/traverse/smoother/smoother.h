@@ -45,7 +45,11 @@ struct SmootherOptions {
   double attitude_floor_rad = 1e-6, position_floor_m = 1e-6;  ///< process σ floors
   // Solver.
   int max_iterations = 50;
-  double function_tolerance = 1e-10, gradient_tolerance = 1e-12, parameter_tolerance = 1e-10;
+  /// The segment problems are nearly linear around the EKF seed: a wide initial trust region
+  /// lets Levenberg-Marquardt take Gauss-Newton steps at once (4 iterations on straight-1m
+  /// instead of 13 from Ceres' default 1e4).
+  double initial_trust_region_radius = 1e8;
+  double function_tolerance = 1e-6, gradient_tolerance = 1e-10, parameter_tolerance = 1e-8;
   int threads = 0;  ///< segments solved in parallel (0: all cores)
   bool covariance = true;
   bool solver_report = false;  ///< print Ceres' full report per segment to stderr
