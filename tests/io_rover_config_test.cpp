@@ -93,6 +93,23 @@ TEST_F(IoRoverConfig, WrongFormatVersion) {
 TEST_F(IoRoverConfig, MissingFormat) {
   expectError("name: x\n", 0, "'format'");
 }
+TEST_F(IoRoverConfig, SmootherSectionChoosesTheRobustLoss) {
+  const RoverConfig c =
+      loadRoverConfig(write("format: 1\nsmoother:\n  loss: cauchy\n  loss_scale: 2\n"));
+  EXPECT_EQ(c.smoother.loss.value_or(""), "cauchy");
+  EXPECT_EQ(c.smoother.loss_scale.value_or(0.0), 2.0);
+  // Round trip, and a config without the section writes none.
+  saveRoverConfig(dir_ / "saved.yaml", c);
+  const RoverConfig back = loadRoverConfig(dir_ / "saved.yaml");
+  EXPECT_EQ(back.smoother.loss.value_or(""), "cauchy");
+  EXPECT_EQ(back.smoother.loss_scale.value_or(0.0), 2.0);
+  EXPECT_FALSE(loadRoverConfig(write("format: 1\n")).smoother.loss.has_value());
+}
+
+TEST_F(IoRoverConfig, UnknownRobustLoss) {
+  expectError("format: 1\nsmoother:\n  loss: tukey\n", 3, "smoother.loss");
+}
+
 TEST_F(IoRoverConfig, UnreadableYaml) {
   expectError("format: 1\ngyro: [1, 2\n", 3, "unreadable YAML");
 }

@@ -41,12 +41,13 @@ void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
                  "Gyro bias per segment: constant, or random-walk (one per node, K-9)")
       ->check(CLI::IsMember({"constant", "random-walk"}))
       ->capture_default_str();
-  cmd.add_option("--loss", o.loss, "Robust loss on the sun and slip residuals")
-      ->check(CLI::IsMember({"huber", "cauchy", "none"}))
-      ->capture_default_str();
-  cmd.add_option("--loss-scale", o.loss_scale, "Robust loss scale in standard deviations")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+  cmd.add_option("--loss", o.loss,
+                 "Robust loss on the sun and slip residuals: huber, cauchy or none (default: "
+                 "rover.yaml's smoother.loss, else huber)")
+      ->check(CLI::IsMember({"huber", "cauchy", "none"}));
+  cmd.add_option("--loss-scale", o.loss_scale,
+                 "Robust loss scale in standard deviations (default: rover.yaml's, else 3)")
+      ->check(CLI::PositiveNumber);
   cmd.add_option("--max-iterations", o.max_iterations, "Levenberg-Marquardt iterations per segment")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
@@ -76,9 +77,11 @@ est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   so.node_period_s = o.node_period_s;
   so.bias_model = o.bias_model == "random-walk" ? smoother::SmootherOptions::BiasModel::kRandomWalk
                                                 : smoother::SmootherOptions::BiasModel::kConstant;
-  so.loss = o.loss == "cauchy" ? smoother::SmootherOptions::Loss::kCauchy
-            : o.loss == "none" ? smoother::SmootherOptions::Loss::kNone
-                               : smoother::SmootherOptions::Loss::kHuber;
+  using Loss = smoother::SmootherOptions::Loss;
+  so.loss = o.loss == "cauchy"  ? Loss::kCauchy
+            : o.loss == "none"  ? Loss::kNone
+            : o.loss == "huber" ? Loss::kHuber
+                                : Loss::kRoverConfig;
   so.loss_scale = o.loss_scale;
   so.max_iterations = o.max_iterations;
   so.threads = o.threads;
@@ -138,6 +141,11 @@ est::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global
       std::cout << "smoother: " << e.smoothed->segments.size() << " segments (" << converged
                 << " converged, " << fallback << " fell back to the EKF), " << nodes
                 << " nodes; solve " << solve << " s, covariance " << cov << " s (CPU, summed)\n";
+      for (const auto& g : e.smoothed->segments) {
+        if (g.status == "fallback_ekf")
+          std::cout << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
+                    << " s) kept the EKF's states: " << g.message << "\n";
+      }
     }
     std::cout << "wrote " << o.out_dir << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
               << ".{csv,tum}, segments.csv" << (log.truth ? ", metrics.json" : "") << "\n";

@@ -20,8 +20,8 @@ struct PipelineOptions {
   // Smoother (smooth, run).
   double node_period_s = 0.0;
   std::string bias_model = "constant";
-  std::string loss = "huber";
-  double loss_scale = 3.0;
+  std::string loss;         ///< empty: rover.yaml's choice
+  double loss_scale = 0.0;  ///< 0: rover.yaml's choice
   int max_iterations = 50;
   int threads = 0;
   bool no_covariance = false, solver_report = false;

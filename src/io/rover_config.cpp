@@ -119,6 +119,17 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
       r.number(p, "process", "rate_time_constant_s", pc.rate_time_constant_s, 1e-3, 1e6);
   pc.rate_noise_rad_s2_per_sqrt_hz = r.number(p, "process", "rate_noise_rad_s2_per_sqrt_hz",
                                               pc.rate_noise_rad_s2_per_sqrt_hz, 0.0, 100.0);
+
+  const YAML::Node sm = r.section(root, "smoother", {"loss", "loss_scale"});
+  if (sm["loss"].IsDefined()) {
+    const std::string loss = r.string(sm, "smoother", "loss", "");
+    if (loss != "huber" && loss != "cauchy" && loss != "none")
+      r.fail(sm["loss"], "smoother.loss",
+             "unknown robust loss '" + loss + "' (expected huber, cauchy or none)");
+    c.smoother.loss = loss;
+  }
+  if (sm["loss_scale"].IsDefined())
+    c.smoother.loss_scale = r.number(sm, "smoother", "loss_scale", 3.0, 1e-6, 1e6);
 }
 
 }  // namespace
@@ -149,9 +160,10 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   }
   YamlReader r(file);
   if (!root.IsMap()) throw InputError(file, 0, "expected a YAML mapping at the top level");
-  r.onlyKeys(root, "",
-             {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro",
-              "sun_sensor", "accelerometer", "sun", "slip_noise", "process", "joint_sensors"});
+  r.onlyKeys(
+      root, "",
+      {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "sun_sensor",
+       "accelerometer", "sun", "slip_noise", "process", "joint_sensors", "smoother"});
   RoverConfig c;
   if (!root["format"].IsDefined()) throw InputError(file, 0, "key 'format': missing (expected 1)");
   c.format = r.integer(root, "", "format", 0, 0, 1000);
@@ -251,6 +263,13 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
       << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window << YAML::Key
       << "steering_filter_window_s" << YAML::Value << num(c.joints.steering_filter_window_s)
       << YAML::EndMap;
+  if (c.smoother.loss || c.smoother.loss_scale) {
+    out << YAML::Key << "smoother" << YAML::Value << YAML::BeginMap;
+    if (c.smoother.loss) out << YAML::Key << "loss" << YAML::Value << *c.smoother.loss;
+    if (c.smoother.loss_scale)
+      out << YAML::Key << "loss_scale" << YAML::Value << num(*c.smoother.loss_scale);
+    out << YAML::EndMap;
+  }
   out << YAML::EndMap;
 
   io::writeFileAtomically(

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <memory>
 
@@ -101,20 +102,19 @@ class SegmentBuilder {
     problem_ = std::make_unique<ceres::Problem>(po);
     if (!d.three_axis_gyro)
       bias_manifold_ = std::make_unique<ceres::SubsetManifold>(3, std::vector<int>{0, 1});
-    switch (o.loss) {
-      case SmootherOptions::Loss::kHuber:
-        loss_ = std::make_unique<ceres::HuberLoss>(o.loss_scale);
-        break;
-      case SmootherOptions::Loss::kCauchy:
-        loss_ = std::make_unique<ceres::CauchyLoss>(o.loss_scale);
-        break;
-      case SmootherOptions::Loss::kNone:
-        break;
+    SmootherOptions::Loss loss = o.loss;
+    if (loss == SmootherOptions::Loss::kRoverConfig) {
+      const std::string name = cfg_.smoother.loss.value_or("huber");
+      loss = name == "cauchy" ? SmootherOptions::Loss::kCauchy
+             : name == "none" ? SmootherOptions::Loss::kNone
+                              : SmootherOptions::Loss::kHuber;
     }
+    const double scale = o.loss_scale > 0 ? o.loss_scale : cfg_.smoother.loss_scale.value_or(3.0);
+    if (loss == SmootherOptions::Loss::kHuber) loss_ = std::make_unique<ceres::HuberLoss>(scale);
+    if (loss == SmootherOptions::Loss::kCauchy) loss_ = std::make_unique<ceres::CauchyLoss>(scale);
     gyro_axes_ = d.three_axis_gyro ? Vec3d::Ones() : Vec3d(0, 0, 1);
     seedStates();
     markRest();
-    makeSeedConsistent();
   }
 
   SegmentSolution solve();
@@ -134,6 +134,11 @@ class SegmentBuilder {
     if (o_.solver_report) by_kind_[kind].push_back(id);
   }
   void reportCostByKind() const;
+  double cost() const {
+    double c = std::numeric_limits<double>::quiet_NaN();
+    problem_->Evaluate(ceres::Problem::EvaluateOptions(), &c, nullptr, nullptr, nullptr);
+    return c;
+  }
   void seedStates();
   void markRest();
   void makeSeedConsistent();
@@ -485,6 +490,12 @@ SegmentSolution SegmentBuilder::solve() {
   sum.parameters = problem_->NumParameters();
   sum.build_seconds = seconds(t0);
 
+  // Start from the EKF, or from its self-consistent version when that costs less; seed_cost is
+  // the cost of the EKF's own states, the bound the solution must beat.
+  sum.seed_cost = cost();
+  const std::vector<NodeBlocks> ekf_states = nodes_;
+  makeSeedConsistent();
+  if (!(cost() <= sum.seed_cost)) nodes_ = ekf_states;
   if (o_.solver_report) reportCostByKind();
   ceres::Solver::Options so;
   so.minimizer_type = ceres::TRUST_REGION;
@@ -506,9 +517,10 @@ SegmentSolution SegmentBuilder::solve() {
     std::cerr << summary.FullReport() << "\nproblem built in " << sum.build_seconds << " s\n";
     reportCostByKind();
   }
-  sum.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  sum.iterations = std::max(0, static_cast<int>(summary.iterations.size()) - 1);
   sum.initial_cost = summary.initial_cost;
   sum.final_cost = summary.final_cost;
+  sum.message = summary.message;
 
   bool finite = std::isfinite(summary.final_cost);
   for (const NodeBlocks& b : nodes_) {
@@ -522,6 +534,7 @@ SegmentSolution SegmentBuilder::solve() {
     sum.status = "no_convergence";
   else
     sum.status = "fallback_ekf";
+  if (sum.status == "fallback_ekf") sum.final_cost = sum.seed_cost;  // the EKF's states stay
 
   out.nodes.resize(n_);
   for (size_t k = 0; k < n_; ++k) {
@@ -558,8 +571,25 @@ SegmentSolution solveSegment(const SmootherData& data, const SegmentSpec& spec,
                              const SmootherOptions& options) {
   if (spec.last <= spec.first || spec.last >= data.nodes.size())
     throw std::invalid_argument("smoother: a segment needs at least two nodes");
-  SegmentBuilder builder(data, spec, options);
-  return builder.solve();
+  try {
+    SegmentBuilder builder(data, spec, options);
+    return builder.solve();
+  } catch (const std::exception& e) {
+    // A segment that cannot even be set up (e.g. a zero noise in rover.yaml makes a weight
+    // infinite) keeps the EKF's states; the rest of the log goes on.
+    SegmentSolution out;
+    for (size_t k = spec.first; k <= spec.last; ++k)
+      out.nodes.push_back(data.seed.nodes[data.nodes[k]]);
+    out.has_covariance = data.seed.has_covariance;
+    SegmentSummary& sum = out.summary;
+    sum.status = "fallback_ekf";
+    sum.message = e.what();
+    sum.num_nodes = out.nodes.size();
+    sum.t_start = out.nodes.front().t, sum.t_end = out.nodes.back().t;
+    const est::TrajectoryNode& mid = out.nodes[out.nodes.size() / 2];
+    out.bias = mid.bias, out.bias_sigma = mid.bias_sigma;
+    return out;
+  }
 }
 
 }  // namespace traverse::smoother

@@ -140,6 +140,12 @@ SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
     sum.bias = sol.bias, sum.bias_sigma = sol.bias_sigma;
     result.segments.push_back(sum);
   }
+  // A shared rest window is reported by the later segment: count each node once.
+  for (size_t s = 0; s < result.segments.size(); ++s) {
+    const size_t end =
+        s + 1 < result.segments.size() ? result.segments[s + 1].first_node : out.size();
+    result.segments[s].num_nodes = end - result.segments[s].first_node;
+  }
   return result;
 }
 

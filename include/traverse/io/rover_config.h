@@ -73,6 +73,12 @@ struct JointSensorConfig {
   double steering_filter_window_s = 1.0;
 };
 
+/// Smoother settings a log may carry (rover.yaml `smoother:`; command-line options override).
+struct SmootherConfig {
+  std::optional<std::string> loss;   ///< robust loss on sun and slip: huber, cauchy, none
+  std::optional<double> loss_scale;  ///< in standard deviations
+};
+
 struct RoverConfig {
   int format = 1;
   std::string name = "rover";
@@ -88,6 +94,7 @@ struct RoverConfig {
   SlipNoiseConfig slip_noise;
   ProcessConfig process;
   JointSensorConfig joints;
+  SmootherConfig smoother;
 };
 
 /// Reads and validates rover.yaml (errors: InputError naming file and key).

@@ -32,9 +32,11 @@ struct SmootherOptions {
   double node_period_s = 0.0;
   enum class BiasModel { kConstant, kRandomWalk };
   BiasModel bias_model = BiasModel::kConstant;
-  enum class Loss { kNone, kHuber, kCauchy };
-  Loss loss = Loss::kHuber;  ///< on the sun and slip residuals
-  double loss_scale = 3.0;   ///< in whitened units (σ)
+  /// Robust loss on the sun and slip residuals; kRoverConfig: rover.yaml's `smoother.loss`
+  /// (Huber when it names none).
+  enum class Loss { kRoverConfig, kNone, kHuber, kCauchy };
+  Loss loss = Loss::kRoverConfig;
+  double loss_scale = 0.0;  ///< in whitened units (σ); 0: rover.yaml's, else 3
   enum class VelocityModel { kAuto, kPerturbation, kAccelDriven };
   VelocityModel velocity = VelocityModel::kAuto;  ///< kAuto: O-4 when the log has accel.csv
   bool use_sun = true, use_slip = true, use_rest = true;
@@ -60,11 +62,15 @@ struct SegmentSummary {
   int index = 0;
   int motion_segment = -1;  ///< index into Segmentation::segments of the segment's motion
   double t_start = 0.0, t_end = 0.0;
-  size_t first_node = 0, num_nodes = 0;  ///< into the smoothed trajectory
+  size_t first_node = 0, num_nodes = 0;  ///< the nodes it reports in the smoothed trajectory
   Vec3d bias = Vec3d::Zero(), bias_sigma = Vec3d::Zero();
   std::string status;  ///< converged | no_convergence | fallback_ekf
   int iterations = 0;
-  double initial_cost = 0.0, final_cost = 0.0;  ///< ½ Σ ‖r‖² (robust), at the seed and solution
+  /// ½ Σ ρ(‖r‖²): at the EKF's states (seed_cost), where Levenberg-Marquardt started (the EKF
+  /// made self-consistent, when that is lower) and at the solution (the EKF's cost again when
+  /// the segment fell back to it). final_cost ≤ seed_cost.
+  double seed_cost = 0.0, initial_cost = 0.0, final_cost = 0.0;
+  std::string message;  ///< the solver's termination message, or why the segment fell back
   double solve_seconds = 0.0, covariance_seconds = 0.0;  ///< solve includes building
   double build_seconds = 0.0;
   int residual_blocks = 0, parameters = 0;
