@@ -153,6 +153,7 @@ std::optional<double> normalizedSquare(const Mat3d& P, const Vec3d& e, double mi
 
 void addNees(Metrics& m, const est::Trajectory& tr, const NodePairs& n, double min_eigenvalue) {
   double sum_p = 0.0, sum_a = 0.0;
+  double e2_p = 0.0, s2_p = 0.0, e2_y = 0.0, s2_y = 0.0;
   std::size_t count_p = 0, count_a = 0;
   for (std::size_t k = 0; k < n.size(); ++k) {
     const Mat6d& P = tr.nodes[k].covariance;
@@ -161,15 +162,19 @@ void addNees(Metrics& m, const est::Trajectory& tr, const NodePairs& n, double m
     if (const auto v = normalizedSquare(P.topLeftCorner<3, 3>(), e_p, min_eigenvalue)) {
       sum_p += *v;
       ++count_p;
+      e2_p += e_p.squaredNorm(), s2_p += P.topLeftCorner<3, 3>().trace();
     }
     if (const auto v = normalizedSquare(P.bottomRightCorner<3, 3>(), e_a, min_eigenvalue)) {
       sum_a += *v;
       ++count_a;
+      e2_y += e_a.z() * e_a.z(), s2_y += P(5, 5);
     }
   }
   if (count_p > 0) m.set("nees_position_mean", sum_p / static_cast<double>(count_p));
   if (count_a > 0) m.set("nees_attitude_mean", sum_a / static_cast<double>(count_a));
   if (count_p > 0 || count_a > 0) m.set("nees_dof", 3.0);
+  if (count_p > 0 && s2_p > 0) m.set("position_rmse_over_sigma", std::sqrt(e2_p / s2_p));
+  if (count_a > 0 && s2_y > 0) m.set("yaw_rmse_over_sigma", std::sqrt(e2_y / s2_y));
 }
 
 }  // namespace

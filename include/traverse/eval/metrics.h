@@ -26,6 +26,9 @@
 //    (the body-frame error of q = q̂ ⊗ Exp(δθ)); eᵀ P⁻¹ e with P the position or attitude 3×3
 //    block; mean over nodes whose block has all eigenvalues ≥ min_covariance_eigenvalue
 //    (the zero covariance of a given initial position is skipped). nees_dof = 3.
+//  - position_rmse_over_sigma = √(Σ‖e_p‖² / Σ tr P_pp), yaw_rmse_over_sigma = √(Σ e_θz² / Σ P_θz)
+//    over the same nodes: the error's RMS over the RMS of the reported σ (1 when the σ columns
+//    are honest; e_θz, the body-z small angle, is the yaw error for a near-level rover).
 // A metric that cannot be computed (no truth group, zero path, no covariance) is omitted.
 #pragma once
 
@@ -43,12 +46,13 @@
 namespace traverse::eval {
 
 /// Every metric key of outputs.md, in the order metrics.json lists them.
-inline constexpr std::array<std::string_view, 15> kMetricKeys = {
+inline constexpr std::array<std::string_view, 17> kMetricKeys = {
     "distance_error_pct", "final_position_error_m", "final_error_pct_of_path",
     "max_cross_track_m",  "position_rmse_m",        "roll_rmse_deg",
     "pitch_rmse_deg",     "yaw_rmse_deg",           "contact_angle_rmse_deg",
     "bias_z_error_dps",   "ate_posyaw_m",           "rpe_pct_per_m",
-    "nees_position_mean", "nees_attitude_mean",     "nees_dof"};
+    "nees_position_mean", "nees_attitude_mean",     "nees_dof",
+    "position_rmse_over_sigma", "yaw_rmse_over_sigma"};
 
 /// Metric key → value, in insertion order (evaluate returns them in kMetricKeys order).
 struct Metrics {

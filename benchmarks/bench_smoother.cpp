@@ -1,0 +1,162 @@
+// Smoother speed on one synthetic long segment of 1 000, 10 000 and 100 000 nodes: straight-1m
+// stretched (rest 5 s, straight L m at 0.05 m/s, rest 5 s; joints at 20 Hz, so one node per
+// 50 ms) over rough terrain (2 cm RMS, statistically the same everywhere: K-22's sin(0.75 x y)
+// gets ever rougher across the path with x, and has no contact configuration by x ≈ 49 m), and
+// solved as ONE segment spanning every node with both rest windows. Each iteration is
+// one solveSegment (build + Levenberg-Marquardt + marginal covariances, single-threaded Ceres).
+// Counters: time per node per LM iteration, total to convergence, the solver's own split, and
+// the peak resident memory during the timed runs (VmHWM, reset after set-up; process-wide, so run
+// one size per process — scripts/run_smoother_bench.sh does, and prints the scaling table).
+//   build/release/benchmarks/bench_smoother --benchmark_filter='^BM_SmoothSegment/1000/'
+// Set TRAVERSE_SMOOTHER_REPORT=1 to print Ceres' full report (time breakdown) per solve.
+#include <benchmark/benchmark.h>
+#include <malloc.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "traverse/estimators/pipeline.h"
+#include "traverse/sim/simulator.h"
+#include "traverse/smoother/segment_problem.h"
+
+namespace {
+
+using namespace traverse;
+
+const std::filesystem::path kDatasets = std::filesystem::path(TRAVERSE_SOURCE_DIR) / "datasets";
+
+/// A /proc/self/status field in kB (VmRSS, VmHWM), -1 if absent.
+long statusKb(const std::string& field) {
+  std::ifstream in("/proc/self/status");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind(field + ":", 0) == 0) return std::stol(line.substr(field.size() + 1));
+  }
+  return -1;
+}
+
+/// Resets VmHWM to the current RSS (Linux ≥ 4.0); false if the kernel refuses.
+bool resetPeakRss() {
+  std::ofstream out("/proc/self/clear_refs");
+  out << "5";
+  out.flush();
+  return static_cast<bool>(out);
+}
+
+struct Case {
+  io::TraverseLog log;
+  est::Estimates est;
+  std::unique_ptr<smoother::SmootherData> data;  // refers to log and est.ekf.trajectory
+  smoother::SegmentSpec spec;
+  double sim_seconds = 0.0, estimate_seconds = 0.0;
+};
+
+smoother::SmootherOptions options(bool covariance) {
+  smoother::SmootherOptions o;
+  o.covariance = covariance;
+  o.threads = 1;
+  const char* report = std::getenv("TRAVERSE_SMOOTHER_REPORT");
+  o.solver_report = report != nullptr && std::string(report) == "1";
+  return o;
+}
+
+/// straight-1m with a straight leg long enough for `nodes` joint samples: the leg lasts
+/// ramp_s + L / v = 2 + L / 0.05 s between two 5 s rests, and joints run at 20 Hz.
+const Case& syntheticSegment(int nodes) {
+  static std::map<int, std::unique_ptr<Case>> cache;
+  auto& slot = cache[nodes];
+  if (slot) return *slot;
+  auto c = std::make_unique<Case>();
+  const double speed = 0.05, ramp = 2.0, rests = 10.0, joints_hz = 20.0;
+  const double length = speed * (nodes / joints_hz - rests - ramp);
+  const sim::Scenario sc = sim::loadScenario(
+      "straight-1m", kDatasets,
+      {"name=smoother-bench-" + std::to_string(nodes), "path.1.straight=" + std::to_string(length),
+       "terrain.type=rough", "truth_rate_hz=200", "truth_output_hz=10"});
+  auto t0 = std::chrono::steady_clock::now();
+  {
+    sim::Simulation s = sim::simulate(sc, sim::roverDirectory(sc, kDatasets), 1);
+    c->log = std::move(s.log);
+  }  // the truth samples go here
+  auto t1 = std::chrono::steady_clock::now();
+  c->sim_seconds = std::chrono::duration<double>(t1 - t0).count();
+  c->est = est::estimate(c->log);  // segmentation, initial state, dead reckoning, EKF
+  c->estimate_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  c->data = std::make_unique<smoother::SmootherData>(c->log, c->est.ekf.trajectory, options(true));
+  // One segment over every node (an exact count: the last node or two of the final rest may go).
+  c->spec.first = 0;
+  c->spec.last = std::min(c->data->nodes.size(), static_cast<size_t>(nodes)) - 1;
+  for (const est::RestWindow& w : c->est.segmentation.rests) c->spec.rests.push_back(&w);
+  slot = std::move(c);
+  malloc_trim(0);  // hand the simulation's memory back, so the RSS baseline is the set-up's
+  return *slot;
+}
+
+void smoothSegment(benchmark::State& state, bool covariance) {
+  const Case& c = syntheticSegment(static_cast<int>(state.range(0)));
+  const smoother::SmootherOptions o = options(covariance);
+  const long rss_before_kb = statusKb("VmRSS");
+  const bool peak_reset = resetPeakRss();
+  double solve = 0, build = 0, cov = 0, iterations = 0;
+  smoother::SegmentSummary last;
+  for (auto _ : state) {
+    smoother::SegmentSolution sol = smoother::solveSegment(*c.data, c.spec, o);
+    last = sol.summary;
+    solve += last.solve_seconds, build += last.build_seconds, cov += last.covariance_seconds;
+    iterations += last.iterations;
+    benchmark::DoNotOptimize(sol);
+  }
+  const double n = static_cast<double>(state.iterations());
+  const double nodes = static_cast<double>(last.num_nodes);
+  solve /= n, build /= n, cov /= n, iterations /= n;
+  state.counters["nodes"] = nodes;
+  state.counters["lm_iterations"] = iterations;  // rejected steps included
+  state.counters["build_s"] = build;
+  state.counters["solve_s"] = solve;  // includes build_s
+  state.counters["covariance_s"] = cov;
+  state.counters["total_s"] = solve + cov;
+  state.counters["us_per_node_iter"] = (solve - build) / (nodes * iterations) * 1e6;
+  state.counters["residual_blocks"] = last.residual_blocks;
+  state.counters["parameters"] = last.parameters;
+  state.counters["peak_rss_MB"] = peak_reset ? statusKb("VmHWM") / 1024.0 : -1.0;
+  state.counters["rss_before_MB"] = rss_before_kb / 1024.0;
+  state.counters["setup_sim_s"] = c.sim_seconds;
+  state.counters["setup_est_s"] = c.estimate_seconds;
+  state.SetLabel(last.status + ", " + std::to_string(c.est.segmentation.segments.size()) +
+                 " segmentation segments, " + std::to_string(c.spec.rests.size()) + " rests");
+}
+
+void BM_SmoothSegment(benchmark::State& state) {
+  smoothSegment(state, true);
+}
+void BM_SmoothSegmentNoCovariance(benchmark::State& state) {
+  smoothSegment(state, false);
+}
+
+BENCHMARK(BM_SmoothSegment)
+    ->Arg(1000)
+    ->Iterations(10)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_SmoothSegment)
+    ->Arg(10000)
+    ->Iterations(3)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_SmoothSegment)
+    ->Arg(100000)
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_SmoothSegmentNoCovariance)
+    ->Arg(1000)
+    ->Iterations(10)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace
