@@ -7,7 +7,8 @@ import sys
 
 KEYS = ["distance_error_pct", "final_position_error_m", "final_error_pct_of_path", "max_cross_track_m",
         "position_rmse_m", "roll_rmse_deg", "pitch_rmse_deg", "yaw_rmse_deg", "contact_angle_rmse_deg",
-        "bias_z_error_dps", "ate_posyaw_m", "rpe_pct_per_m", "nees_position_mean", "nees_attitude_mean"]
+        "bias_z_error_dps", "ate_posyaw_m", "rpe_pct_per_m", "nees_position_mean", "nees_attitude_mean",
+        "position_rmse_over_sigma", "yaw_rmse_over_sigma"]
 
 
 def fmt(s):

@@ -510,6 +510,21 @@ SegmentSolution SegmentBuilder::solve() {
   so.logging_type = o_.solver_report ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
   so.minimizer_progress_to_stdout = o_.solver_report;
   so.initial_trust_region_radius = o_.initial_trust_region_radius;
+  if (o_.chain_ordering) {
+    // Eliminate node by node in time order, the segment bias last: the normal equations are a
+    // band (each residual ties nodes k and k+1) with one dense border, so this order has no
+    // fill outside the band and keeps the factor's memory local — AMD on the whole problem
+    // scatters a chain and grows worse than linearly with its length.
+    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+    for (size_t k = 0; k < n_; ++k) {
+      NodeBlocks& b = nodes_[k];
+      for (double* p : {b.q, b.x, b.v, b.w, b.xi})
+        ordering->AddElementToGroup(p, static_cast<int>(k));
+      if (randomWalkBias()) ordering->AddElementToGroup(b.b, static_cast<int>(k));
+    }
+    if (!randomWalkBias()) ordering->AddElementToGroup(segment_bias_, static_cast<int>(n_));
+    so.linear_solver_ordering = ordering;
+  }
   ceres::Solver::Summary summary;
   ceres::Solve(so, problem_.get(), &summary);
   sum.solve_seconds = seconds(t0);

@@ -56,25 +56,24 @@ std::vector<std::pair<SegmentSpec, int>> segmentSpecs(const SmootherData& d,
   return specs;
 }
 
-/// Moves segment b so that its pose at node `ref` (local index) equals `anchor`: a rigid
-/// transform (δR, t) applied to every node — q ← δq ⊗ q, p ← δR p + t — with the position
-/// covariance rotated and the anchor's position covariance added (the chain's uncertainty).
+/// Moves segment b so that its position at node `ref` (local index) equals the anchor's: a
+/// translation — the gauge freedom of a segment problem, where only the start prior sees
+/// absolute position — with the anchor's position covariance added to every node (the chain's
+/// uncertainty). The attitude is left alone: each segment's attitude is anchored by its own sun
+/// and gravity data; rotating segment s+1 onto segment s's estimate would make the two
+/// estimates' differences accumulate along the chain like a random walk (measured on
+/// multi-stop: yaw RMSE 0.22° instead of 0.09° on one seed). stitch_rotation_rad reports the
+/// two estimates' disagreement at the shared window.
 void stitch(SegmentSolution& b, size_t ref, const est::TrajectoryNode& anchor,
             SegmentSummary& summary) {
   const est::TrajectoryNode& r = b.nodes[ref];
-  const Quatd dq = (anchor.q_site_body * r.q_site_body.conjugate()).normalized();
-  const Mat3d dR = dq.toRotationMatrix();
-  const Vec3d t = anchor.p_site - dR * r.p_site;
-  summary.stitch_rotation_rad = so3::log(dq).norm();
-  summary.stitch_translation_m = (anchor.p_site - r.p_site).norm();
+  const Vec3d t = anchor.p_site - r.p_site;
+  summary.stitch_rotation_rad = so3::boxminus(anchor.q_site_body, r.q_site_body).norm();
+  summary.stitch_translation_m = t.norm();
   const Mat3d chain = anchor.covariance.topLeftCorner<3, 3>();
   for (est::TrajectoryNode& n : b.nodes) {
-    n.q_site_body = (dq * n.q_site_body).normalized();
-    n.p_site = dR * n.p_site + t;
-    Mat6d& C = n.covariance;
-    C.topLeftCorner<3, 3>() = dR * C.topLeftCorner<3, 3>() * dR.transpose() + chain;
-    C.topRightCorner<3, 3>() = dR * C.topRightCorner<3, 3>();
-    C.bottomLeftCorner<3, 3>() = C.topRightCorner<3, 3>().transpose();
+    n.p_site += t;
+    n.covariance.topLeftCorner<3, 3>() += chain;
   }
 }
 

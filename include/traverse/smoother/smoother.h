@@ -9,12 +9,13 @@
 //
 // Segments are independent problems, solved in parallel; each segment's result depends only on
 // its own data, so the output does not depend on the thread count. Consecutive segments share a
-// rest window. They are made to agree there by stitching, in time order: segment s+1 is moved
-// by the rigid transform that puts its pose at the shared window's middle node onto segment s's
-// pose at that node. For position this is exact — the problems are invariant under translation
-// (only the start prior sees absolute position) — and the rotation is the small difference of
-// two estimates of the same rest attitude (reported per segment). The shared window's nodes are
-// then reported from the later segment.
+// rest window; each node is reported once, the shared window by the later segment. They agree
+// there in position exactly: stitching, in time order, translates segment s+1 so that its
+// position at the window's middle node equals segment s's — the problems are invariant under
+// translation (only the start prior sees absolute position), so this is the gauge, not an
+// approximation. Attitude needs no stitching: each segment's is anchored by its own sun and
+// gravity data, and the two estimates of the shared rest attitude differ by a few hundredths of
+// a degree (reported per segment as stitch_rotation_rad).
 #pragma once
 
 #include <string>
@@ -51,6 +52,7 @@ struct SmootherOptions {
   /// lets Levenberg-Marquardt take Gauss-Newton steps at once (4 iterations on straight-1m
   /// instead of 13 from Ceres' default 1e4).
   double initial_trust_region_radius = 1e8;
+  bool chain_ordering = true;  ///< eliminate nodes in time order, the bias last (else AMD)
   double function_tolerance = 1e-6, gradient_tolerance = 1e-10, parameter_tolerance = 1e-8;
   int threads = 0;  ///< segments solved in parallel (0: all cores)
   bool covariance = true;
