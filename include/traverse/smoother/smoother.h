@@ -53,7 +53,9 @@ struct SmootherOptions {
   /// instead of 13 from Ceres' default 1e4).
   double initial_trust_region_radius = 1e8;
   bool chain_ordering = true;  ///< eliminate nodes in time order, the bias last (else AMD)
-  double function_tolerance = 1e-6, gradient_tolerance = 1e-10, parameter_tolerance = 1e-8;
+  /// Stop when an iteration lowers the cost by less than 1e-5 of it: the cost is ~½ × the number of
+  /// residual rows, so that is a change in log-likelihood far below one unit.
+  double function_tolerance = 1e-5, gradient_tolerance = 1e-10, parameter_tolerance = 1e-8;
   int threads = 0;  ///< segments solved in parallel (0: all cores)
   bool covariance = true;
   bool solver_report = false;  ///< print Ceres' full report per segment to stderr
