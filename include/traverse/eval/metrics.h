@@ -47,11 +47,11 @@ namespace traverse::eval {
 
 /// Every metric key of outputs.md, in the order metrics.json lists them.
 inline constexpr std::array<std::string_view, 17> kMetricKeys = {
-    "distance_error_pct", "final_position_error_m", "final_error_pct_of_path",
-    "max_cross_track_m",  "position_rmse_m",        "roll_rmse_deg",
-    "pitch_rmse_deg",     "yaw_rmse_deg",           "contact_angle_rmse_deg",
-    "bias_z_error_dps",   "ate_posyaw_m",           "rpe_pct_per_m",
-    "nees_position_mean", "nees_attitude_mean",     "nees_dof",
+    "distance_error_pct",       "final_position_error_m", "final_error_pct_of_path",
+    "max_cross_track_m",        "position_rmse_m",        "roll_rmse_deg",
+    "pitch_rmse_deg",           "yaw_rmse_deg",           "contact_angle_rmse_deg",
+    "bias_z_error_dps",         "ate_posyaw_m",           "rpe_pct_per_m",
+    "nees_position_mean",       "nees_attitude_mean",     "nees_dof",
     "position_rmse_over_sigma", "yaw_rmse_over_sigma"};
 
 /// Metric key → value, in insertion order (evaluate returns them in kMetricKeys order).
