@@ -39,7 +39,7 @@ Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config) {
   e.segments = segmentRows(e.segmentation, e.ekf.trajectory);
   if (config.smooth) {
     e.smoothed = smoother::smooth(log, e.segmentation, e.ekf.trajectory, config.smoother);
-    e.segments = smoother::smootherSegmentRows(e.segmentation, e.segments, *e.smoothed);
+    e.segments = smoother::smootherSegmentRows(e.segments, *e.smoothed);
   }
   return e;
 }

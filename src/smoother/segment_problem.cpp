@@ -148,7 +148,7 @@ class SegmentBuilder {
   void addRestResiduals();
   void addSunResiduals();
   void addStartPrior();
-  std::vector<double*> orderedBlocks(int* node_dim, int* global_dim) const;
+  std::vector<double*> orderedBlocks(int* node_dim, int* global_dim);
   bool computeCovariance(SegmentSolution* out);
 
   const SmootherData& d_;
@@ -428,18 +428,17 @@ void SegmentBuilder::addStartPrior() {
 
 namespace {
 
-std::vector<double*> SegmentBuilder::orderedBlocks(int* node_dim, int* global_dim) const {
+std::vector<double*> SegmentBuilder::orderedBlocks(int* node_dim, int* global_dim) {
   // Tangent order per node: δθ (3), x, v, ω, ξ [, b]; then the segment bias (global).
   std::vector<double*> blocks;
-  auto& nodes = const_cast<std::vector<NodeBlocks>&>(nodes_);
   const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
-  for (NodeBlocks& b : nodes) {
+  for (NodeBlocks& b : nodes_) {
     for (double* p : {b.q, b.x, b.v, b.w, b.xi}) blocks.push_back(p);
     if (randomWalkBias()) blocks.push_back(b.b);
   }
   *node_dim = 18 + (randomWalkBias() ? bias_dim : 0);
   *global_dim = randomWalkBias() ? 0 : bias_dim;
-  if (!randomWalkBias()) blocks.push_back(const_cast<double*>(segment_bias_));
+  if (!randomWalkBias()) blocks.push_back(segment_bias_);
   return blocks;
 }
 

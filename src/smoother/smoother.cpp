@@ -148,8 +148,7 @@ SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
   return result;
 }
 
-std::vector<est::SegmentRow> smootherSegmentRows(const est::Segmentation& seg,
-                                                 const std::vector<est::SegmentRow>& ekf_rows,
+std::vector<est::SegmentRow> smootherSegmentRows(const std::vector<est::SegmentRow>& ekf_rows,
                                                  const SmootherResult& result) {
   std::vector<est::SegmentRow> rows = ekf_rows;
   for (const SegmentSummary& s : result.segments) {
@@ -169,7 +168,6 @@ std::vector<est::SegmentRow> smootherSegmentRows(const est::Segmentation& seg,
       row.solve_seconds = s.solve_seconds;
     }
   }
-  (void)seg;
   return rows;
 }
 

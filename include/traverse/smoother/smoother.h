@@ -90,10 +90,9 @@ struct SmootherResult {
 SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
                       const est::Trajectory& ekf, const SmootherOptions& options = {});
 
-/// segments.csv rows: the segmentation's rows, with each motion row carrying its smoother
+/// segments.csv rows: the EKF's rows (segmentRows), with each motion row carrying its smoother
 /// segment's bias ± σ and solver summary.
-std::vector<est::SegmentRow> smootherSegmentRows(const est::Segmentation& seg,
-                                                 const std::vector<est::SegmentRow>& ekf_rows,
+std::vector<est::SegmentRow> smootherSegmentRows(const std::vector<est::SegmentRow>& ekf_rows,
                                                  const SmootherResult& result);
 
 }  // namespace traverse::smoother

@@ -1,6 +1,6 @@
 // Attitude process (K-2 / K-7): q̇ = ½ q ⊗ [ω; 0] over one node interval, trapezoid rule,
 //
-//   r = (Log(q_k⁻¹ ⊗ q_{k+1}) − ½ (ω_k + ω_{k+1}) Δt) / σ,     σ² = q_ω Δt³ / 12
+//   r = (Log(q_k⁻¹ ⊗ q_{k+1}) − ½ (ω_k + ω_{k+1}) Δt) / σ,     σ² = q_ω Δt³ / 12 + σ_floor²
 //
 // With the rate a white-acceleration process (ω̇ = n_ω, density q_ω), the trapezoid error of
 // the integrated rate has variance q_ω Δt³/12 per axis and is uncorrelated with the rate

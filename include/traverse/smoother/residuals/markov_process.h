@@ -33,7 +33,7 @@ class MarkovProcessResidual final : public ceres::SizedCostFunction<N, N, N> {
       : mean_k_(mean_k), mean_k1_(mean_k1) {
     for (int i = 0; i < N; ++i) {
       phi_[i] = std::exp(a[i] * dt);
-      const double var = a[i] < 0 ? q[i] * (1.0 - phi_[i] * phi_[i]) / (-2.0 * a[i]) : q[i] * dt;
+      const double var = a[i] < 0 ? q[i] * -std::expm1(2.0 * a[i] * dt) / (-2.0 * a[i]) : q[i] * dt;
       sqrt_info_[i] = 1.0 / std::sqrt(var);
     }
   }
