@@ -1,5 +1,6 @@
 // Exact chain marginals: against the dense inverse, ceres::Covariance and a Monte Carlo of a
 // linear-Gaussian chain.
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -157,6 +158,78 @@ TEST(Marginals, InformationFromCrsMatchesDenseNormalEquations) {
     }
   }
 }
+TEST(Marginals, InformationFromResidualBlocksMatchesDenseNormalEquations) {
+  // Residual blocks of 1-4 rows over 1-5 parameter blocks, in random order, whose places split
+  // the node columns unevenly (d = 5: columns 0-1, 2, 3-4) and the global ones (m = 3: 0, 1-2):
+  // the sum of their JᵀJ must equal the dense normal equations.
+  std::mt19937 rng(17);
+  for (int m : {0, 3}) {
+    const int n = 5, d = 5;
+    const std::vector<std::pair<int, int>> node_parts{{0, 2}, {2, 1}, {3, 2}};
+    const std::vector<std::pair<int, int>> global_parts{{0, 1}, {1, 2}};
+    std::vector<ChainPlace> all;
+    MatrixXd J_all(0, n * d + m);
+    ChainInformation C = makeChainInformation(n, d, m);
+    std::uniform_int_distribution<int> node(0, n - 1), rows(1, 4), coin(0, 1);
+    for (int r = 0; r < 60; ++r) {
+      const int k = node(rng), k2 = std::min(k + coin(rng), n - 1);
+      std::vector<ChainPlace> places;
+      const std::vector<int> touched = k2 == k ? std::vector<int>{k} : std::vector<int>{k, k2};
+      for (int kk : touched) {
+        for (const auto& [col, size] : node_parts)
+          if (coin(rng)) places.push_back({kk, col, size});
+      }
+      if (m > 0) {
+        for (const auto& [col, size] : global_parts)
+          if (coin(rng)) places.push_back({ChainPlace::kGlobal, col, size});
+      }
+      if (places.empty()) continue;
+      std::shuffle(places.begin(), places.end(), rng);
+      const int nr = rows(rng);
+      std::vector<RowMajorMatrixXd> blocks;
+      std::vector<const double*> ptrs;
+      MatrixXd dense = MatrixXd::Zero(nr, n * d + m);
+      for (const ChainPlace& p : places) {
+        blocks.push_back(gaussianMatrix(rng, nr, p.size));
+        const int c0 = p.node == ChainPlace::kGlobal ? n * d + p.col : p.node * d + p.col;
+        dense.middleCols(c0, p.size) = blocks.back();
+      }
+      for (const auto& b : blocks) ptrs.push_back(b.data());
+      addChainResidual(C, places, ptrs.data(), nr);
+      J_all.conservativeResize(J_all.rows() + nr, Eigen::NoChange);
+      J_all.bottomRows(nr) = dense;
+    }
+    const ChainInformation expected = chainFromDense(J_all.transpose() * J_all, n, d, m);
+    const auto close = [](const MatrixXd& a, const MatrixXd& b) {
+      return (a - b).cwiseAbs().maxCoeff() <= 1e-12 * std::max(1.0, b.cwiseAbs().maxCoeff());
+    };
+    for (int k = 0; k < n; ++k) {
+      EXPECT_TRUE(close(C.diag[k], expected.diag[k])) << k;
+      if (m > 0) {
+        EXPECT_TRUE(close(C.global_coupling[k], expected.global_coupling[k])) << k;
+      }
+      if (k + 1 < n) {
+        EXPECT_TRUE(close(C.upper[k], expected.upper[k])) << k;
+      }
+    }
+    if (m > 0) {
+      EXPECT_TRUE(close(C.global, expected.global));
+    }
+  }
+}
+
+TEST(Marginals, InformationFromResidualBlocksRejectsBadPlaces) {
+  ChainInformation C = makeChainInformation(3, 2, 1);
+  const double J[2] = {1.0, 2.0};
+  const double* ptrs[2] = {J, J};
+  const std::vector<ChainPlace> far{{0, 0, 1}, {2, 0, 1}};  // nodes 0 and 2
+  EXPECT_THROW(addChainResidual(C, far, ptrs, 2), std::invalid_argument);
+  const std::vector<ChainPlace> wide{{1, 1, 2}};  // columns 1-2 of a 2-column node
+  EXPECT_THROW(addChainResidual(C, wide, ptrs, 1), std::invalid_argument);
+  const std::vector<ChainPlace> global{{ChainPlace::kGlobal, 1, 1}};  // m = 1
+  EXPECT_THROW(addChainResidual(C, global, ptrs, 1), std::invalid_argument);
+}
+
 TEST(Marginals, InformationFromCrsRejectsNonAdjacentRow) {
   const int n = 3, d = 2, m = 1;
   MatrixXd J = MatrixXd::Zero(4, n * d + m);

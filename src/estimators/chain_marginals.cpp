@@ -1,6 +1,7 @@
 #include "traverse/estimators/chain_marginals.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -145,6 +146,45 @@ void addChainRows(ChainInformation& H, int first_node,
     H.upper[first_node] += S.block(0, d, d, d);
     H.diag[first_node + 1] += S.block(d, d, d, d);
     H.global_coupling[first_node + 1] += S.block(d, g, d, m);
+  }
+}
+
+void addChainResidual(ChainInformation& H, std::span<const ChainPlace> places,
+                      const double* const* jacobians, int rows) {
+  using RowMajorMap =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  const int n = H.numNodes(), d = H.node_dim, m = H.global_dim;
+  for (const ChainPlace& p : places) {
+    const int width = p.node == ChainPlace::kGlobal ? m : d;
+    if (p.node < ChainPlace::kGlobal || p.node >= n || p.col < 0 || p.size < 0 ||
+        p.col + p.size > width)
+      throw std::invalid_argument("addChainResidual: block at node " + std::to_string(p.node) +
+                                  ", columns " + std::to_string(p.col) + "+" +
+                                  std::to_string(p.size) + " is outside the chain");
+  }
+  for (size_t i = 0; i < places.size(); ++i) {
+    const ChainPlace& a = places[i];
+    const RowMajorMap Ja(jacobians[i], rows, a.size);
+    for (size_t j = 0; j < places.size(); ++j) {
+      const ChainPlace& b = places[j];
+      const RowMajorMap Jb(jacobians[j], rows, b.size);
+      // Each unordered pair lands once in the stored upper arrow; the diagonal blocks are kept
+      // whole (both orders of a same-node pair are added).
+      if (a.node != ChainPlace::kGlobal && b.node != ChainPlace::kGlobal) {
+        if (std::abs(a.node - b.node) > 1)
+          throw std::invalid_argument("addChainResidual: a residual couples nodes " +
+                                      std::to_string(a.node) + " and " + std::to_string(b.node));
+        if (a.node == b.node)
+          H.diag[a.node].block(a.col, b.col, a.size, b.size).noalias() += Ja.transpose() * Jb;
+        else if (b.node == a.node + 1)
+          H.upper[a.node].block(a.col, b.col, a.size, b.size).noalias() += Ja.transpose() * Jb;
+      } else if (a.node != ChainPlace::kGlobal) {
+        H.global_coupling[a.node].block(a.col, b.col, a.size, b.size).noalias() +=
+            Ja.transpose() * Jb;
+      } else if (b.node == ChainPlace::kGlobal) {
+        H.global.block(a.col, b.col, a.size, b.size).noalias() += Ja.transpose() * Jb;
+      }
+    }
   }
 }
 

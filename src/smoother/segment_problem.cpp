@@ -2,12 +2,15 @@
 // read the marginal covariances (include/traverse/smoother/segment_problem.h).
 #include "traverse/smoother/segment_problem.h"
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <iostream>
 #include <limits>
 #include <map>
 #include <memory>
+#include <span>
+#include <stdexcept>
 
 #include <ceres/ceres.h>
 
@@ -87,6 +90,16 @@ struct NodeBlocks {
   double q[4], x[3], v[3], w[3], xi[6], b[3];
 };
 
+/// Most parameter blocks any residual here takes (the position and accelerometer processes).
+constexpr int kMaxBlocksPerResidual = 6;
+
+/// One residual block as added: its id and parameter blocks, in the cost function's order.
+struct ResidualEntry {
+  ceres::ResidualBlockId id = nullptr;
+  int num_rows = 0, num_blocks = 0;
+  std::array<double*, kMaxBlocksPerResidual> blocks{};
+};
+
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -97,6 +110,10 @@ class SegmentBuilder {
   SegmentBuilder(const SmootherData& d, const SegmentSpec& spec, const SmootherOptions& o)
       : d_(d), spec_(spec), o_(o), cfg_(d.log.config), n_(spec.last - spec.first + 1) {
     ceres::Problem::Options po;
+    // The builder owns every cost function, loss and manifold (costs_, loss_, the manifolds):
+    // a Problem that owns them keeps a hash map of reference counts, one insertion per residual
+    // block and a walk over it on destruction — a tenth of the build time for nothing here.
+    po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     problem_ = std::make_unique<ceres::Problem>(po);
@@ -130,15 +147,19 @@ class SegmentBuilder {
 
   template <typename... Blocks>
   void add(const char* kind, ceres::CostFunction* f, ceres::LossFunction* loss, Blocks*... blocks) {
+    static_assert(sizeof...(Blocks) <= kMaxBlocksPerResidual);
+    costs_.emplace_back(f);
     const ceres::ResidualBlockId id = problem_->AddResidualBlock(f, loss, blocks...);
+    residuals_.push_back(
+        {id, f->num_residuals(), static_cast<int>(sizeof...(Blocks)), {blocks...}});
     if (o_.solver_report) by_kind_[kind].push_back(id);
   }
   void reportCostByKind() const;
-  double cost() const {
-    double c = std::numeric_limits<double>::quiet_NaN();
-    problem_->Evaluate(ceres::Problem::EvaluateOptions(), &c, nullptr, nullptr, nullptr);
-    return c;
-  }
+  /// ½ Σ ρ(‖r‖²) at the current states, block by block: Problem::Evaluate would first build a
+  /// whole evaluation program (offsets, scratch, a state vector) for one number.
+  double cost() const;
+  /// Column place of a parameter block in the chain information (est::ChainPlace).
+  est::ChainPlace place(const double* block) const;
   void seedStates();
   void markRest();
   void makeSeedConsistent();
@@ -148,7 +169,6 @@ class SegmentBuilder {
   void addRestResiduals();
   void addSunResiduals();
   void addStartPrior();
-  std::vector<double*> orderedBlocks(int* node_dim, int* global_dim);
   bool computeCovariance(SegmentSolution* out);
 
   const SmootherData& d_;
@@ -160,12 +180,48 @@ class SegmentBuilder {
   double segment_bias_[3] = {0, 0, 0};
   std::vector<unsigned char> rest_;  ///< node inside a rest window's trimmed part
   Vec3d gyro_axes_;
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs_;  ///< outlive problem_ (declared first)
+  std::vector<ResidualEntry> residuals_;
   std::unique_ptr<ceres::Problem> problem_;
   BodyQuaternionManifold quaternion_manifold_;
   std::unique_ptr<ceres::Manifold> bias_manifold_;
   std::unique_ptr<ceres::LossFunction> loss_;
   std::map<std::string, std::vector<ceres::ResidualBlockId>> by_kind_;
 };
+
+double SegmentBuilder::cost() const {
+  double total = 0.0;
+  std::vector<double> r;
+  for (const ResidualEntry& e : residuals_) {
+    r.resize(static_cast<size_t>(e.num_rows));
+    double c = 0.0;
+    if (!problem_->EvaluateResidualBlock(e.id, true, &c, r.data(), nullptr))
+      return std::numeric_limits<double>::quiet_NaN();
+    total += c;
+  }
+  return total;
+}
+
+est::ChainPlace SegmentBuilder::place(const double* block) const {
+  const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
+  if (block == segment_bias_) return {est::ChainPlace::kGlobal, 0, bias_dim};
+  // Node k's blocks live in nodes_[k]; find k from the address, then the member.
+  const auto offset =
+      reinterpret_cast<const char*>(block) - reinterpret_cast<const char*>(nodes_.data());
+  const auto k = static_cast<size_t>(offset) / sizeof(NodeBlocks);
+  if (offset < 0 || k >= nodes_.size())
+    throw std::logic_error("smoother: a residual refers to a parameter block of no node");
+  const NodeBlocks& b = nodes_[k];
+  const int node = static_cast<int>(k);
+  // Tangent order per node: δθ (3), x, v, ω, ξ [, b]; the segment bias is the global block.
+  if (block == b.q) return {node, 0, 3};
+  if (block == b.x) return {node, 3, 3};
+  if (block == b.v) return {node, 6, 3};
+  if (block == b.w) return {node, 9, 3};
+  if (block == b.xi) return {node, 12, 6};
+  if (block == b.b) return {node, 18, bias_dim};
+  throw std::logic_error("smoother: a residual refers to an unknown member of a node");
+}
 
 /// Cost ½ Σ ρ(‖r‖²) of each kind of residual at the current states (solver_report only).
 void SegmentBuilder::reportCostByKind() const {
@@ -428,30 +484,33 @@ void SegmentBuilder::addStartPrior() {
 
 namespace {
 
-std::vector<double*> SegmentBuilder::orderedBlocks(int* node_dim, int* global_dim) {
-  // Tangent order per node: δθ (3), x, v, ω, ξ [, b]; then the segment bias (global).
-  std::vector<double*> blocks;
-  const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
-  for (NodeBlocks& b : nodes_) {
-    for (double* p : {b.q, b.x, b.v, b.w, b.xi}) blocks.push_back(p);
-    if (randomWalkBias()) blocks.push_back(b.b);
-  }
-  *node_dim = 18 + (randomWalkBias() ? bias_dim : 0);
-  *global_dim = randomWalkBias() ? 0 : bias_dim;
-  if (!randomWalkBias()) blocks.push_back(segment_bias_);
-  return blocks;
-}
-
 bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
-  int node_dim = 0, global_dim = 0;
-  ceres::Problem::EvaluateOptions eo;
-  eo.parameter_blocks = orderedBlocks(&node_dim, &global_dim);
-  eo.apply_loss_function = true;
-  eo.num_threads = 1;
-  ceres::CRSMatrix J;
-  if (!problem_->Evaluate(eo, nullptr, nullptr, nullptr, &J)) return false;
-  const est::ChainInformation H =
-      est::chainInformationFromJacobian(J, static_cast<int>(n_), node_dim, global_dim);
+  // H = JᵀJ at the solution (robust losses applied as in the solver), accumulated residual block
+  // by residual block straight into the chain's blocks: no global Jacobian is ever formed (with
+  // Problem::Evaluate it was built as a CRS matrix, then copied — two thirds of the covariance
+  // time at 10 000 nodes).
+  const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
+  const int node_dim = 18 + (randomWalkBias() ? bias_dim : 0);
+  const int global_dim = randomWalkBias() ? 0 : bias_dim;
+  est::ChainInformation H = est::makeChainInformation(static_cast<int>(n_), node_dim, global_dim);
+  std::vector<double> residuals, jacobian;
+  std::array<est::ChainPlace, kMaxBlocksPerResidual> places;
+  std::array<double*, kMaxBlocksPerResidual> jacobians{};
+  for (const ResidualEntry& e : residuals_) {
+    int cols = 0;
+    for (int i = 0; i < e.num_blocks; ++i) {
+      places[static_cast<size_t>(i)] = place(e.blocks[static_cast<size_t>(i)]);
+      cols += places[static_cast<size_t>(i)].size;
+    }
+    residuals.resize(static_cast<size_t>(e.num_rows));
+    jacobian.resize(static_cast<size_t>(e.num_rows * cols));
+    for (int i = 0, c = 0; i < e.num_blocks; c += places[static_cast<size_t>(i)].size, ++i)
+      jacobians[static_cast<size_t>(i)] = jacobian.data() + static_cast<ptrdiff_t>(e.num_rows * c);
+    if (!problem_->EvaluateResidualBlock(e.id, true, nullptr, residuals.data(), jacobians.data()))
+      return false;
+    est::addChainResidual(H, std::span(places.data(), static_cast<size_t>(e.num_blocks)),
+                          jacobians.data(), e.num_rows);
+  }
   const est::ChainMarginals m = est::chainMarginals(H);
   if (!m.ok) return false;
   // Bias axes in the tangent: all three, or z only (heading-only gyro, x and y held).

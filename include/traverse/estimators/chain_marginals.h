@@ -31,6 +31,7 @@
 // recomputed from A_k⁻¹ in the backward pass).
 #pragma once
 
+#include <span>
 #include <vector>
 
 #include <ceres/crs_matrix.h>
@@ -62,6 +63,23 @@ void addChainRows(ChainInformation& H, int first_node,
 /// nodes more than one apart, or if the column count does not match.
 ChainInformation chainInformationFromJacobian(const ceres::CRSMatrix& J, int num_nodes,
                                               int node_dim, int global_dim);
+
+/// Where one parameter block's tangent columns sit in a chain problem: in node `node`'s block
+/// (0 ≤ node < N) or, with node = kGlobal, among the m global columns; starting at column `col`
+/// of that block, `size` columns wide.
+struct ChainPlace {
+  static constexpr int kGlobal = -1;
+  int node = kGlobal, col = 0, size = 0;
+};
+
+/// Adds JᵀJ of one residual block whose Jacobian comes split by parameter block, as Ceres'
+/// Problem::EvaluateResidualBlock returns it: jacobians[i] is the rows × places[i].size
+/// Jacobian of parameter block i, row-major. Only the products of blocks that share rows are
+/// formed (Σᵢ sizeᵢ)² · rows flops, not the (2d + m)² · rows of a dense two-node window. Throws
+/// std::invalid_argument if a place is out of range or two blocks sit on nodes more than one
+/// apart.
+void addChainResidual(ChainInformation& H, std::span<const ChainPlace> places,
+                      const double* const* jacobians, int rows);
 
 struct ChainMarginals {
   bool ok = false;  ///< false if H is not positive definite (the other members are then empty)
