@@ -166,8 +166,9 @@ class SegmentBuilder {
   void addParameterBlocks();
   void addProcessResiduals(size_t k);
   void addSlipResiduals(size_t k);
-  void addRestResiduals();
-  void addSunResiduals();
+  void addZeroMotionResiduals(size_t k);
+  void addRestWindowResiduals();
+  void addSunResiduals(size_t k);
   void addStartPrior();
   bool computeCovariance(SegmentSolution* out);
 
@@ -179,6 +180,7 @@ class SegmentBuilder {
   std::vector<NodeBlocks> nodes_;
   double segment_bias_[3] = {0, 0, 0};
   std::vector<unsigned char> rest_;  ///< node inside a rest window's trimmed part
+  Eigen::Index sun_next_ = 0;        ///< next sun reading addSunResiduals looks at
   Vec3d gyro_axes_;
   std::vector<std::unique_ptr<ceres::CostFunction>> costs_;  ///< outlive problem_ (declared first)
   std::vector<ResidualEntry> residuals_;
@@ -399,12 +401,13 @@ void SegmentBuilder::addSlipResiduals(size_t k) {
   }
 }
 
-void SegmentBuilder::addRestResiduals() {
-  for (size_t k = 0; k < n_; ++k) {
-    if (!rest_[k]) continue;
-    add("zero_velocity", new ZeroMotionResidual(o_.zero_velocity_sigma_mps), nullptr, nodes_[k].v);
-    add("zero_rate", new ZeroMotionResidual(o_.zero_rate_sigma_rad_s), nullptr, nodes_[k].w);
-  }
+void SegmentBuilder::addZeroMotionResiduals(size_t k) {
+  if (!rest_[k]) return;
+  add("zero_velocity", new ZeroMotionResidual(o_.zero_velocity_sigma_mps), nullptr, nodes_[k].v);
+  add("zero_rate", new ZeroMotionResidual(o_.zero_rate_sigma_rad_s), nullptr, nodes_[k].w);
+}
+
+void SegmentBuilder::addRestWindowResiduals() {
   if (!o_.use_rest) return;
   for (const est::RestWindow* w : spec_.rests) {
     // The window's trimmed nodes [first, last]: their gyro readings give the bias (the gyro
@@ -430,19 +433,24 @@ void SegmentBuilder::addRestResiduals() {
   }
 }
 
-void SegmentBuilder::addSunResiduals() {
-  if (!o_.use_sun || !d_.log.sun) return;
+void SegmentBuilder::addSunResiduals(size_t k) {
+  // The readings in [t_k, t_{k+1}) (the last interval closed), between nodes k and k + 1.
+  if (!o_.use_sun || !d_.log.sun || k + 1 >= n_) return;
   const io::Stream& sun = *d_.log.sun;
   const sensors::SunSensorGeometry geo{cfg_.sun_sensor.R_body_sensor,
                                        0.5 * cfg_.sun_sensor.field_of_view_rad};
-  const double t_first = time(0), t_last = time(n_ - 1);
-  const double* begin = sun.t.data();
-  Eigen::Index j = std::lower_bound(begin, begin + sun.size(), t_first) - begin;
-  size_t k = 0;
-  for (; j < sun.size() && sun.t[j] <= t_last; ++j) {
+  if (k == 0) {
+    const double* begin = sun.t.data();
+    sun_next_ = std::lower_bound(begin, begin + sun.size(), time(0)) - begin;
+  }
+  const double t_end = time(k + 1);
+  const bool last = k + 2 == n_;
+  for (;
+       sun_next_ < sun.size() && (sun.t[sun_next_] < t_end || (last && sun.t[sun_next_] <= t_end));
+       ++sun_next_) {
+    const Eigen::Index j = sun_next_;
     if (sun.values(j, 2) < 0.5) continue;  // valid = 0
     const double t = sun.t[j];
-    while (k + 2 < n_ && time(k + 1) <= t) ++k;
     const double u = std::clamp((t - time(k)) / (time(k + 1) - time(k)), 0.0, 1.0);
     const Vec3d sun_site = cfg_.sun.directionAt(t);
     const Quatd q_seed = so3::boxplus(
@@ -537,12 +545,16 @@ SegmentSolution SegmentBuilder::solve() {
   SegmentSummary& sum = out.summary;
   const auto t0 = std::chrono::steady_clock::now();
   addParameterBlocks();
-  for (size_t k = 0; k + 1 < n_; ++k) addProcessResiduals(k);
-  if (o_.use_slip) {
-    for (size_t k = 0; k < n_; ++k) addSlipResiduals(k);
+  // Residuals node by node, so that Ceres' Jacobian rows run in time order like its columns
+  // (chain ordering): forming JᵀJ and evaluating then sweep memory once, locally, instead of
+  // once per kind of residual over the whole problem.
+  for (size_t k = 0; k < n_; ++k) {
+    if (k + 1 < n_) addProcessResiduals(k);
+    if (o_.use_slip) addSlipResiduals(k);
+    addZeroMotionResiduals(k);
+    addSunResiduals(k);
   }
-  addRestResiduals();
-  addSunResiduals();
+  addRestWindowResiduals();
   addStartPrior();
   sum.residual_blocks = problem_->NumResidualBlocks();
   sum.parameters = problem_->NumParameters();

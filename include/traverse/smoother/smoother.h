@@ -48,10 +48,14 @@ struct SmootherOptions {
   double attitude_floor_rad = 1e-6, position_floor_m = 1e-6;  ///< process σ floors
   // Solver.
   int max_iterations = 50;
-  /// The segment problems are nearly linear around the EKF seed: a wide initial trust region
-  /// lets Levenberg-Marquardt take Gauss-Newton steps at once (4 iterations on straight-1m
-  /// instead of 13 from Ceres' default 1e4).
-  double initial_trust_region_radius = 1e8;
+  /// The segment problems are nearly linear around the EKF seed, so Levenberg-Marquardt should
+  /// take Gauss-Newton steps at once. Its damping is λ = 1/radius on the Jacobi-scaled normal
+  /// equations (unit diagonal), and a chain's smoothest mode — all six contact angles shifting
+  /// together with a slow vertical drift over the whole segment — has an eigenvalue of order
+  /// (π/N)² there: 1e-7 at N = 10 000 nodes. Any λ near that stalls the mode, one fraction of it
+  /// per iteration at an accepted-step ratio of 1 (radius 1e8: 5–6 iterations at 1k–10k nodes
+  /// that never quite converge; 1e14: 2, to a lower cost). Ceres' default 1e4 took 13.
+  double initial_trust_region_radius = 1e14;
   bool chain_ordering = true;  ///< eliminate nodes in time order, the bias last (else AMD)
   /// Stop when an iteration lowers the cost by less than 1e-5 of it: the cost is ~½ × the number of
   /// residual rows, so that is a change in log-likelihood far below one unit.
