@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "support/jacobian_check.h"
+#include "traverse/core/error.h"
 #include "traverse/core/so3.h"
 #include "traverse/estimators/pipeline.h"
 #include "traverse/eval/metrics.h"
@@ -349,6 +350,26 @@ TEST(Smoother, StopsAtTheIterationLimitWithoutLosingGround) {
   // The kept solution is not the EKF's.
   EXPECT_FALSE(
       sameBits(e.smoothed->trajectory.nodes[100].p_site, e.ekf.trajectory.nodes[100].p_site));
+}
+
+// The random-walk bias model with a zero random-walk noise would weight every bias step
+// infinitely, fail every segment and silently keep the EKF: it is refused, naming rover.yaml.
+TEST(Smoother, RandomWalkBiasNeedsARandomWalkNoise) {
+  sim::Simulation s = simulate("straight-1m", {});
+  s.log.config.gyro.bias_random_walk_rad_s_per_sqrt_s = 0.0;
+  SmootherOptions options;
+  options.bias_model = SmootherOptions::BiasModel::kRandomWalk;
+  try {
+    estimateSmoothed(s.log, options);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.file().find("rover.yaml"), std::string::npos) << e.what();
+    EXPECT_NE(e.message().find("bias_random_walk_rad_s_per_sqrt_s"), std::string::npos) << e.what();
+  }
+  options.bias_model = SmootherOptions::BiasModel::kConstant;  // fine without a random walk
+  const est::Estimates e = estimateSmoothed(s.log, options);
+  ASSERT_TRUE(e.smoothed.has_value());
+  for (const SegmentSummary& g : e.smoothed->segments) EXPECT_NE(g.status, "fallback_ekf");
 }
 
 // Marginal covariances: symmetric positive definite at every node; the position uncertainty

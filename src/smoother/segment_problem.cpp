@@ -10,10 +10,12 @@
 #include <map>
 #include <memory>
 #include <span>
+#include <sstream>
 #include <stdexcept>
 
 #include <ceres/ceres.h>
 
+#include "traverse/core/error.h"
 #include "traverse/estimators/chain_marginals.h"
 #include "traverse/rover/nominal_slip.h"
 #include "traverse/smoother/body_quaternion_manifold.h"
@@ -64,6 +66,15 @@ SmootherData::SmootherData(const io::TraverseLog& log, const est::Trajectory& se
   accel_driven = log.accel && options.velocity != SmootherOptions::VelocityModel::kPerturbation;
   if (options.velocity == SmootherOptions::VelocityModel::kAccelDriven && !log.accel)
     throw std::invalid_argument("smoother: the accelerometer-driven model needs accel.csv");
+  // K-9 with zero noise would weight the bias steps infinitely: every segment would fail and
+  // silently keep the EKF's states. A bias that does not wander is the constant model.
+  if (options.bias_model == SmootherOptions::BiasModel::kRandomWalk &&
+      !(log.config.gyro.bias_random_walk_rad_s_per_sqrt_s > 0.0)) {
+    std::ostringstream what;
+    what << "the random-walk bias model needs gyro.bias_random_walk_rad_s_per_sqrt_s > 0 (it is "
+         << log.config.gyro.bias_random_walk_rad_s_per_sqrt_s << "); use the constant bias model";
+    throw InputError((log.dir / "rover.yaml").string(), 0, what.str());
+  }
   gyro_period_s = io::medianPeriod(log.gyro);
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(log.gyro.size(), 3);
   if (three_axis_gyro)
