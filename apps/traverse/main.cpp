@@ -3,6 +3,8 @@
 #include <iostream>
 #include <vector>
 
+#include <glog/logging.h>
+
 #include "commands.h"
 #include "traverse/core/error.h"
 
@@ -23,6 +25,12 @@ std::filesystem::path datasetsDir() {
 
 int main(int argc, char** argv) {
   using namespace traverse;
+  // Ceres logs through glog, and a failed residual evaluation dumps whole parameter blocks as
+  // warnings, several per segment. The smoother reports such a segment itself (fallback_ekf and
+  // the reason), so only errors get through: one line per failed solve, on stderr, no log files.
+  FLAGS_logtostderr = true;
+  FLAGS_minloglevel = google::GLOG_ERROR;
+  google::InitGoogleLogging(argv[0]);
   CLI::App app{"traverse: rover trajectory reconstruction (dead reckoning, EKF, batch smoother)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "traverse 0.1.0");
