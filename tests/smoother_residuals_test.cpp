@@ -795,6 +795,32 @@ TEST(SmootherResidualMarkovProcess, HandCheckedAndRandomWalkLimit) {
   }
 }
 
+// One wheel's K-8 increment as its own row: the same number as row i of the six-row process,
+// Jacobian nonzero only at component i; hand value with φ = e^{−0.05}, σ² = 0.0025 (1 − e^{−0.1}).
+TEST(SmootherResidualMarkovComponent, MatchesTheBlockRowAndIsHandChecked) {
+  std::mt19937 rng(21);
+  const double a = -0.5, qd = 0.0025;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    SCOPED_TRACE(trial);
+    const double dt = uniform(rng, 0.05, 0.2);
+    const MarkovProcessResidual<6> block6(dt, Vec6d::Constant(a), Vec6d::Constant(qd),
+                                          Vec6d::Zero(), Vec6d::Zero());
+    const std::vector<double> y0 = block(randomVector<6>(rng, 0.3)),
+                              y1 = block(randomVector<6>(rng, 0.3));
+    const Eigen::VectorXd rows = evaluate(block6, {y0, y1});
+    for (int i = 0; i < 6; ++i) {
+      const MarkovComponentResidual<6> one(i, dt, a, qd);
+      EXPECT_NEAR(evaluate(one, {y0, y1})[0], rows[i], 1e-12) << i;
+      checkCostFunctionJacobians(one, {y0, y1}, {false, false});
+    }
+  }
+  const MarkovComponentResidual<6> wheel3(3, 0.1, a, qd);
+  const double phi = std::exp(-0.05), sigma = std::sqrt(qd * (1 - std::exp(-0.1)));
+  std::vector<double> y0(6, 0.0), y1(6, 0.0);
+  y0[3] = 0.2, y1[3] = 0.5, y0[1] = y1[4] = 9.0;  // other wheels do not enter
+  EXPECT_NEAR(evaluate(wheel3, {y0, y1})[0], (0.5 - phi * 0.2) / sigma, 1e-9);
+}
+
 // The whitening, statistically: simulate ẏ = a y + n (m = 0) by Euler-Maruyama on a grid 200×
 // finer than Δt and check that the residuals have unit variance and no lag-1 correlation.
 TEST(SmootherResidualMarkovProcess, WhitensASimulatedProcess) {

@@ -48,6 +48,11 @@ void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
   cmd.add_option("--loss-scale", o.loss_scale,
                  "Robust loss scale in standard deviations (default: rover.yaml's, else 3)")
       ->check(CLI::PositiveNumber);
+  cmd.add_option("--contact-loss-scale", o.contact_loss_scale,
+                 "Cauchy scale (standard deviations) on each wheel's contact-angle increment; "
+                 "0: Gaussian K-8")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   cmd.add_option("--max-iterations", o.max_iterations, "Levenberg-Marquardt iterations per segment")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
@@ -83,6 +88,7 @@ est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
             : o.loss == "huber" ? Loss::kHuber
                                 : Loss::kRoverConfig;
   so.loss_scale = o.loss_scale;
+  so.contact_loss_scale = o.contact_loss_scale;
   so.max_iterations = o.max_iterations;
   so.threads = o.threads;
   so.covariance = !o.no_covariance;

@@ -20,8 +20,9 @@ struct PipelineOptions {
   // Smoother (smooth, run).
   double node_period_s = 0.0;
   std::string bias_model = "constant";
-  std::string loss;         ///< empty: rover.yaml's choice
-  double loss_scale = 0.0;  ///< 0: rover.yaml's choice
+  std::string loss;                 ///< empty: rover.yaml's choice
+  double loss_scale = 0.0;          ///< 0: rover.yaml's choice
+  double contact_loss_scale = 1.0;  ///< SmootherOptions::contact_loss_scale
   int max_iterations = 50;
   int threads = 0;
   bool no_covariance = false, solver_report = false;

@@ -140,6 +140,8 @@ class SegmentBuilder {
     const double scale = o.loss_scale > 0 ? o.loss_scale : cfg_.smoother.loss_scale.value_or(3.0);
     if (loss == SmootherOptions::Loss::kHuber) loss_ = std::make_unique<ceres::HuberLoss>(scale);
     if (loss == SmootherOptions::Loss::kCauchy) loss_ = std::make_unique<ceres::CauchyLoss>(scale);
+    if (o.contact_loss_scale > 0)
+      contact_loss_ = std::make_unique<ceres::CauchyLoss>(o.contact_loss_scale);
     gyro_axes_ = d.three_axis_gyro ? Vec3d::Ones() : Vec3d(0, 0, 1);
     seedStates();
     markRest();
@@ -198,7 +200,7 @@ class SegmentBuilder {
   std::unique_ptr<ceres::Problem> problem_;
   BodyQuaternionManifold quaternion_manifold_;
   std::unique_ptr<ceres::Manifold> bias_manifold_;
-  std::unique_ptr<ceres::LossFunction> loss_;
+  std::unique_ptr<ceres::LossFunction> loss_, contact_loss_;
   std::map<std::string, std::vector<ceres::ResidualBlockId>> by_kind_;
 };
 
@@ -368,10 +370,18 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
   // Contact angles (K-8).
   const double n_xi = pc.contact_angle_noise_rad_per_sqrt_s;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
-  add("contact",
-      new MarkovProcessResidual<6>(dt, Vec6::Constant(-1.0 / pc.contact_angle_time_constant_s),
-                                   Vec6::Constant(n_xi * n_xi), Vec6::Zero(), Vec6::Zero()),
-      nullptr, a.xi, b.xi);
+  if (contact_loss_) {  // per wheel, heavy-tailed (SmootherOptions::contact_loss_scale)
+    for (int i = 0; i < rover::kNumWheels; ++i)
+      add("contact",
+          new MarkovComponentResidual<6>(i, dt, -1.0 / pc.contact_angle_time_constant_s,
+                                         n_xi * n_xi),
+          contact_loss_.get(), a.xi, b.xi);
+  } else {
+    add("contact",
+        new MarkovProcessResidual<6>(dt, Vec6::Constant(-1.0 / pc.contact_angle_time_constant_s),
+                                     Vec6::Constant(n_xi * n_xi), Vec6::Zero(), Vec6::Zero()),
+        nullptr, a.xi, b.xi);
+  }
   // Gyro increments (K-12/K-13 integrated; O-1), except inside rest windows, whose readings
   // the rest-bias residual carries.
   if (!at_rest) {

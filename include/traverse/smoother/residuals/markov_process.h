@@ -14,6 +14,7 @@
 // −φ/σ and 1/σ, written out instead of differentiated.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 #include <ceres/sized_cost_function.h>
@@ -21,6 +22,14 @@
 #include "traverse/core/types.h"
 
 namespace traverse::smoother {
+
+/// φ = exp(a Δt) and 1/σ of one component's transition (the header's formulas).
+struct MarkovStep {
+  double phi = 1.0, sqrt_info = 0.0;
+  MarkovStep(double dt, double a, double q)
+      : phi(std::exp(a * dt)),
+        sqrt_info(1.0 / std::sqrt(a < 0 ? q * -std::expm1(2.0 * a * dt) / (-2.0 * a) : q * dt)) {}
+};
 
 template <int N>
 class MarkovProcessResidual final : public ceres::SizedCostFunction<N, N, N> {
@@ -32,9 +41,8 @@ class MarkovProcessResidual final : public ceres::SizedCostFunction<N, N, N> {
                         const VecN& mean_k1)
       : mean_k_(mean_k), mean_k1_(mean_k1) {
     for (int i = 0; i < N; ++i) {
-      phi_[i] = std::exp(a[i] * dt);
-      const double var = a[i] < 0 ? q[i] * -std::expm1(2.0 * a[i] * dt) / (-2.0 * a[i]) : q[i] * dt;
-      sqrt_info_[i] = 1.0 / std::sqrt(var);
+      const MarkovStep step(dt, a[i], q[i]);
+      phi_[i] = step.phi, sqrt_info_[i] = step.sqrt_info;
     }
   }
 
@@ -62,6 +70,39 @@ class MarkovProcessResidual final : public ceres::SizedCostFunction<N, N, N> {
 }  // namespace traverse::smoother
 
 namespace traverse::smoother {
+
+/// One component i of a zero-mean N-dimensional process of the header, as its own one-row
+/// residual over the full N-vectors: r = (y_{k+1,i} − φ y_{k,i}) / σ. The smoother uses it for
+/// K-8 per wheel, so that a robust loss acts on each wheel's contact-angle increment alone: a
+/// wheel meeting an edge changes its contact angle by many σ of the Gaussian process within a
+/// few samples, and a loss on the six-wheel block would charge that jump to all six.
+template <int N>
+class MarkovComponentResidual final : public ceres::SizedCostFunction<1, N, N> {
+ public:
+  /// component in [0, N); a: rate (1/s, ≤ 0), q: noise density (units² / s).
+  MarkovComponentResidual(int component, double dt, double a, double q)
+      : i_(component), step_(dt, a, q) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    residuals[0] = step_.sqrt_info * (parameters[1][i_] - step_.phi * parameters[0][i_]);
+    if (jacobians) {
+      for (int k = 0; k < 2; ++k) {
+        if (!jacobians[k]) continue;
+        std::fill(jacobians[k], jacobians[k] + N, 0.0);
+        jacobians[k][i_] = k == 0 ? -step_.phi * step_.sqrt_info : step_.sqrt_info;
+      }
+    }
+    return true;
+  }
+
+  int component() const { return i_; }
+  const MarkovStep& step() const { return step_; }
+
+ private:
+  int i_;
+  MarkovStep step_;
+};
 
 /// The process's stationary distribution at a segment's first node (e.g. K-8's contact angles,
 /// ξ ~ N(0, q τ / 2)): r = y / σ. Without it a contact angle no wheel constrains would be
