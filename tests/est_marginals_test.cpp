@@ -99,6 +99,27 @@ void expectMatchesCovariance(const ChainMarginals& M, const MatrixXd& Sigma, int
   }
 }
 
+/// Every stored block of C equals expected's to 1e-12 relative.
+void expectSameInformation(const ChainInformation& C, const ChainInformation& expected) {
+  const auto close = [](const MatrixXd& a, const MatrixXd& b) {
+    return (a - b).cwiseAbs().maxCoeff() <= 1e-12 * std::max(1.0, b.cwiseAbs().maxCoeff());
+  };
+  const int n = expected.numNodes(), m = expected.global_dim;
+  ASSERT_EQ(C.numNodes(), n);
+  for (int k = 0; k < n; ++k) {
+    EXPECT_TRUE(close(C.diag[k], expected.diag[k])) << k;
+    if (m > 0) {
+      EXPECT_TRUE(close(C.global_coupling[k], expected.global_coupling[k])) << k;
+    }
+    if (k + 1 < n) {
+      EXPECT_TRUE(close(C.upper[k], expected.upper[k])) << k;
+    }
+  }
+  if (m > 0) {
+    EXPECT_TRUE(close(C.global, expected.global));
+  }
+}
+
 TEST(Marginals, MatchDenseInverse) {
   std::mt19937 rng(7);
   const int d = 4;
@@ -141,21 +162,7 @@ TEST(Marginals, InformationFromCrsMatchesDenseNormalEquations) {
     const MatrixXd H = Js.transpose() * Js;
     const ChainInformation C = chainInformationFromJacobian(denseToCrs(Js), n, d, m);
     const ChainInformation expected = chainFromDense(H, n, d, m);
-    const auto close = [](const MatrixXd& a, const MatrixXd& b) {
-      return (a - b).cwiseAbs().maxCoeff() <= 1e-12 * std::max(1.0, b.cwiseAbs().maxCoeff());
-    };
-    for (int k = 0; k < n; ++k) {
-      EXPECT_TRUE(close(C.diag[k], expected.diag[k])) << k;
-      if (m > 0) {
-        EXPECT_TRUE(close(C.global_coupling[k], expected.global_coupling[k])) << k;
-      }
-      if (k + 1 < n) {
-        EXPECT_TRUE(close(C.upper[k], expected.upper[k])) << k;
-      }
-    }
-    if (m > 0) {
-      EXPECT_TRUE(close(C.global, expected.global));
-    }
+    expectSameInformation(C, expected);
   }
 }
 TEST(Marginals, InformationFromResidualBlocksMatchesDenseNormalEquations) {
@@ -200,21 +207,7 @@ TEST(Marginals, InformationFromResidualBlocksMatchesDenseNormalEquations) {
       J_all.bottomRows(nr) = dense;
     }
     const ChainInformation expected = chainFromDense(J_all.transpose() * J_all, n, d, m);
-    const auto close = [](const MatrixXd& a, const MatrixXd& b) {
-      return (a - b).cwiseAbs().maxCoeff() <= 1e-12 * std::max(1.0, b.cwiseAbs().maxCoeff());
-    };
-    for (int k = 0; k < n; ++k) {
-      EXPECT_TRUE(close(C.diag[k], expected.diag[k])) << k;
-      if (m > 0) {
-        EXPECT_TRUE(close(C.global_coupling[k], expected.global_coupling[k])) << k;
-      }
-      if (k + 1 < n) {
-        EXPECT_TRUE(close(C.upper[k], expected.upper[k])) << k;
-      }
-    }
-    if (m > 0) {
-      EXPECT_TRUE(close(C.global, expected.global));
-    }
+    expectSameInformation(C, expected);
   }
 }
 
