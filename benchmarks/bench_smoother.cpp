@@ -8,10 +8,18 @@
 // the peak resident memory during the timed runs (VmHWM, reset after set-up; process-wide, so run
 // one size per process — scripts/run_smoother_bench.sh does, and prints the scaling table).
 //   build/release/benchmarks/bench_smoother --benchmark_filter='^BM_SmoothSegment/1000/'
-// Set TRAVERSE_SMOOTHER_REPORT=1 to print Ceres' full report (time breakdown) per solve.
+// BM_ScalingRatio times the two sizes against each other in one process, interleaved: each round
+// is ten 1 000-node solves then one 10 000-node solve, and the round's ratio is the large solve
+// over the median small one. This VM's speed drifts by 15–40 % between minutes (shared memory
+// bandwidth), so ratios taken from separate processes minutes apart measure the drift as much as
+// the code; adjacent solves see the same machine. It reports the median ratio and its range.
+// Set TRAVERSE_SMOOTHER_REPORT=1 to print Ceres' full report (time breakdown) per solve, and
+// TRAVERSE_BENCH_CACHE=DIR to keep the simulated logs in DIR between runs (the 10 000-node log
+// takes ~50 s to simulate; the log reads back bit for bit, io/log_writer.h).
 #include <benchmark/benchmark.h>
 #include <malloc.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
@@ -19,8 +27,11 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "traverse/estimators/pipeline.h"
+#include "traverse/io/log_reader.h"
+#include "traverse/io/log_writer.h"
 #include "traverse/sim/simulator.h"
 #include "traverse/smoother/segment_problem.h"
 
@@ -78,9 +89,18 @@ const Case& syntheticSegment(int nodes) {
       {"name=smoother-bench-" + std::to_string(nodes), "path.1.straight=" + std::to_string(length),
        "terrain.type=rough", "truth_rate_hz=200", "truth_output_hz=10"});
   auto t0 = std::chrono::steady_clock::now();
-  {
+  const char* cache_dir = std::getenv("TRAVERSE_BENCH_CACHE");
+  const std::filesystem::path cached =
+      cache_dir ? std::filesystem::path(cache_dir) / sc.name : std::filesystem::path();
+  if (cache_dir && std::filesystem::exists(cached / "joints.csv")) {
+    c->log = io::readLog(cached);
+  } else {
     sim::Simulation s = sim::simulate(sc, sim::roverDirectory(sc, kDatasets), 1);
     c->log = std::move(s.log);
+    if (cache_dir) {
+      io::writeLog(cached, c->log);
+      c->log = io::readLog(cached);  // the same samples, and the same log.dir either way
+    }
   }  // the truth samples go here
   auto t1 = std::chrono::steady_clock::now();
   c->sim_seconds = std::chrono::duration<double>(t1 - t0).count();
@@ -138,6 +158,49 @@ void BM_SmoothSegmentNoCovariance(benchmark::State& state) {
   smoothSegment(state, false);
 }
 
+/// Wall time of one solveSegment, the solution's destruction included.
+double timedSolve(const Case& c, const smoother::SmootherOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  {
+    smoother::SegmentSolution sol = smoother::solveSegment(*c.data, c.spec, o);
+    benchmark::DoNotOptimize(sol);
+  }
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+void BM_ScalingRatio(benchmark::State& state) {
+  const int small_nodes = static_cast<int>(state.range(0));
+  const int large_nodes = 10 * small_nodes;
+  const Case& small = syntheticSegment(small_nodes);
+  const Case& large = syntheticSegment(large_nodes);
+  const smoother::SmootherOptions o = options(true);
+  timedSolve(small, o), timedSolve(large, o);  // warm-up: first-touch of the allocator's heap
+  std::vector<double> ratios, small_s, large_s;
+  for (auto _ : state) {
+    std::vector<double> round;
+    for (int i = 0; i < 10; ++i) round.push_back(timedSolve(small, o));
+    const double s = median(round), l = timedSolve(large, o);
+    small_s.push_back(s), large_s.push_back(l), ratios.push_back(l / s);
+  }
+  state.counters["ratio_median"] = median(ratios);
+  state.counters["ratio_min"] = *std::min_element(ratios.begin(), ratios.end());
+  state.counters["ratio_max"] = *std::max_element(ratios.begin(), ratios.end());
+  state.counters["small_median_s"] = median(small_s);
+  state.counters["small_min_s"] = *std::min_element(small_s.begin(), small_s.end());
+  state.counters["small_max_s"] = *std::max_element(small_s.begin(), small_s.end());
+  state.counters["large_median_s"] = median(large_s);
+  state.counters["large_min_s"] = *std::min_element(large_s.begin(), large_s.end());
+  state.counters["large_max_s"] = *std::max_element(large_s.begin(), large_s.end());
+  state.counters["rounds"] = static_cast<double>(ratios.size());
+}
+
+BENCHMARK(BM_ScalingRatio)->Arg(1000)->Iterations(7)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(BM_SmoothSegment)
     ->Arg(1000)
     ->Iterations(10)

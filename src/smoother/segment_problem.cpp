@@ -18,6 +18,7 @@
 #include "traverse/core/error.h"
 #include "traverse/estimators/chain_marginals.h"
 #include "traverse/rover/nominal_slip.h"
+#include "traverse/smoother/block_evaluation.h"
 #include "traverse/smoother/body_quaternion_manifold.h"
 #include "traverse/smoother/residuals/accel_velocity_process.h"
 #include "traverse/smoother/residuals/attitude_process.h"
@@ -104,11 +105,21 @@ struct NodeBlocks {
 /// Most parameter blocks any residual here takes (the position and accelerometer processes).
 constexpr int kMaxBlocksPerResidual = 6;
 
-/// One residual block as added: its id and parameter blocks, in the cost function's order.
+/// One residual block as added: its id, cost function, loss, and parameter blocks with their
+/// manifolds (nullptr: Euclidean), in the cost function's order.
 struct ResidualEntry {
   ceres::ResidualBlockId id = nullptr;
+  const ceres::CostFunction* f = nullptr;
+  const ceres::LossFunction* loss = nullptr;
   int num_rows = 0, num_blocks = 0;
   std::array<double*, kMaxBlocksPerResidual> blocks{};
+  std::array<const ceres::Manifold*, kMaxBlocksPerResidual> manifolds{};
+  std::span<double* const> parameterBlocks() const {
+    return {blocks.data(), static_cast<size_t>(num_blocks)};
+  }
+  std::span<const ceres::Manifold* const> blockManifolds() const {
+    return {manifolds.data(), static_cast<size_t>(num_blocks)};
+  }
 };
 
 double seconds(std::chrono::steady_clock::time_point t0) {
@@ -163,14 +174,28 @@ class SegmentBuilder {
     static_assert(sizeof...(Blocks) <= kMaxBlocksPerResidual);
     costs_.emplace_back(f);
     const ceres::ResidualBlockId id = problem_->AddResidualBlock(f, loss, blocks...);
-    residuals_.push_back(
-        {id, f->num_residuals(), static_cast<int>(sizeof...(Blocks)), {blocks...}});
+    residuals_.push_back({id,
+                          f,
+                          loss,
+                          f->num_residuals(),
+                          static_cast<int>(sizeof...(Blocks)),
+                          {blocks...},
+                          {manifoldOf(blocks)...}});
     if (o_.solver_report) by_kind_[kind].push_back(id);
   }
+  /// The manifold a parameter block was added with (nullptr: Euclidean).
+  const ceres::Manifold* manifoldOf(const double* block) const {
+    if (block == segment_bias_) return bias_manifold_.get();
+    const est::ChainPlace p = place(block);
+    if (p.col == 0) return &quaternion_manifold_;
+    if (p.col == 18) return bias_manifold_.get();
+    return nullptr;
+  }
   void reportCostByKind() const;
-  /// ½ Σ ρ(‖r‖²) at the current states, block by block: Problem::Evaluate would first build a
-  /// whole evaluation program (offsets, scratch, a state vector) for one number.
-  double cost() const;
+  /// ½ Σ ρ(‖r‖²) at the current states, block by block (BlockEvaluator): Problem::Evaluate
+  /// would first build a whole evaluation program (offsets, scratch, a state vector) for one
+  /// number.
+  double cost();
   /// Column place of a parameter block in the chain information (est::ChainPlace).
   est::ChainPlace place(const double* block) const;
   void seedStates();
@@ -202,15 +227,15 @@ class SegmentBuilder {
   std::unique_ptr<ceres::Manifold> bias_manifold_;
   std::unique_ptr<ceres::LossFunction> loss_, contact_loss_;
   std::map<std::string, std::vector<ceres::ResidualBlockId>> by_kind_;
+  BlockEvaluator evaluator_;
 };
 
-double SegmentBuilder::cost() const {
+double SegmentBuilder::cost() {
   double total = 0.0;
-  std::vector<double> r;
   for (const ResidualEntry& e : residuals_) {
-    r.resize(static_cast<size_t>(e.num_rows));
     double c = 0.0;
-    if (!problem_->EvaluateResidualBlock(e.id, true, &c, r.data(), nullptr))
+    if (!evaluator_.evaluate(*e.f, e.loss, e.parameterBlocks(), e.blockManifolds(), &c, nullptr,
+                             nullptr))
       return std::numeric_limits<double>::quiet_NaN();
     total += c;
   }
@@ -535,7 +560,8 @@ bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
     jacobian.resize(static_cast<size_t>(e.num_rows * cols));
     for (int i = 0, c = 0; i < e.num_blocks; c += places[static_cast<size_t>(i)].size, ++i)
       jacobians[static_cast<size_t>(i)] = jacobian.data() + static_cast<ptrdiff_t>(e.num_rows * c);
-    if (!problem_->EvaluateResidualBlock(e.id, true, nullptr, residuals.data(), jacobians.data()))
+    if (!evaluator_.evaluate(*e.f, e.loss, e.parameterBlocks(), e.blockManifolds(), nullptr,
+                             residuals.data(), jacobians.data()))
       return false;
     est::addChainResidual(H, std::span(places.data(), static_cast<size_t>(e.num_blocks)),
                           jacobians.data(), e.num_rows);
