@@ -182,6 +182,22 @@ Quatd nextAttitude(std::mt19937& rng, const Quatd& q) {
   return next;
 }
 
+/// Two cost functions of the same residual (two-stage autodiff vs one full AutoDiffCostFunction):
+/// the same residual and the same ambient Jacobians, to rounding.
+void expectSameCostFunction(const ceres::CostFunction& a, const ceres::CostFunction& b,
+                            const Params& params) {
+  const std::vector<bool> ambient(params.size(), false);
+  const Eigen::VectorXd ra = evaluate(a, params), rb = evaluate(b, params);
+  EXPECT_LT((ra - rb).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, rb.cwiseAbs().maxCoeff()));
+  const std::vector<RowMajorXd> Ja = reportedJacobians(a, params, ambient);
+  const std::vector<RowMajorXd> Jb = reportedJacobians(b, params, ambient);
+  for (size_t i = 0; i < params.size(); ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_LT((Ja[i] - Jb[i]).cwiseAbs().maxCoeff(),
+              1e-12 * std::max(1.0, Jb[i].cwiseAbs().maxCoeff()));
+  }
+}
+
 double uniform(std::mt19937& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
 }
@@ -374,6 +390,22 @@ TEST(SmootherResidualPositionProcess, JacobiansMatchNumeric) {
   }
 }
 
+TEST(SmootherResidualPositionProcess, TwoStageAutodiffMatchesFullAutodiff) {
+  std::mt19937 rng(21);
+  for (int trial = 0; trial < kTrials; ++trial) {
+    SCOPED_TRACE(trial);
+    const double dt = uniform(rng, 0.05, 0.2), si = uniform(rng, 10.0, 1000.0);
+    const std::unique_ptr<ceres::CostFunction> two(PositionProcessResidual::Create(dt, si));
+    const std::unique_ptr<ceres::CostFunction> full(
+        PositionProcessResidual::CreateFullAutodiff(dt, si));
+    const Quatd q0 = randomAttitude(rng);
+    expectSameCostFunction(*two, *full,
+                           {block(randomVector<3>(rng, 10.0)), block(randomVector<3>(rng, 10.0)),
+                            block(q0), block(nextAttitude(rng, q0)),
+                            block(randomVector<3>(rng, 0.1)), block(randomVector<3>(rng, 0.1))});
+  }
+}
+
 // Straight motion at v = (0.1, 0, 0) with the body yawed 90°: the body x axis is site +y, so in
 // Δt = 0.1 the position moves 0.01 along site +y → r = 0. Turning from yaw 0 to yaw 0.2 the
 // midpoint attitude has yaw 0.1: x moves 0.01 (cos 0.1, sin 0.1, 0) → r = 0; left at x_k the
@@ -417,6 +449,25 @@ TEST(SmootherResidualAccelVelocityProcess, JacobiansMatchNumeric) {
                                 block(randomVector<3>(rng, 0.1)), block(randomVector<3>(rng, 0.1)),
                                 block(randomVector<3>(rng, 0.1)), block(randomVector<3>(rng, 0.1))},
                                {true, true, false, false, false, false});
+  }
+}
+
+TEST(SmootherResidualAccelVelocityProcess, TwoStageAutodiffMatchesFullAutodiff) {
+  std::mt19937 rng(22);
+  for (int trial = 0; trial < kTrials; ++trial) {
+    SCOPED_TRACE(trial);
+    const double dt = uniform(rng, 0.05, 0.2), si = uniform(rng, 10.0, 1000.0);
+    const Quatd q0 = randomAttitude(rng);
+    const Vec3d accel = q0.conjugate() * Vec3d(0, 0, kGravity) + Vec3d(randomVector<3>(rng, 0.2));
+    const Vec3d lever(0.02, -0.01, 0.05);
+    const std::unique_ptr<ceres::CostFunction> two(
+        AccelVelocityProcessResidual::Create(dt, accel, lever, kGravity, si));
+    const std::unique_ptr<ceres::CostFunction> full(
+        AccelVelocityProcessResidual::CreateFullAutodiff(dt, accel, lever, kGravity, si));
+    expectSameCostFunction(*two, *full,
+                           {block(q0), block(nextAttitude(rng, q0)),
+                            block(randomVector<3>(rng, 0.1)), block(randomVector<3>(rng, 0.1)),
+                            block(randomVector<3>(rng, 0.1)), block(randomVector<3>(rng, 0.1))});
   }
 }
 

@@ -15,6 +15,7 @@
 
 #include "traverse/sensors/accelerometer.h"
 #include "traverse/smoother/residuals/interpolation.h"
+#include "traverse/smoother/residuals/midpoint_attitude_cost.h"
 
 namespace traverse::smoother {
 
@@ -27,12 +28,11 @@ struct AccelVelocityProcessResidual {
         gravity(gravity_mps2),
         sqrt_info(sqrt_info) {}
 
+  /// The residual given the midpoint attitude; blocks in the cost function's order (0 and 1,
+  /// the attitudes, are not read).
   template <typename T>
-  bool operator()(const T* q_k, const T* q_k1, const T* v_k, const T* v_k1, const T* w_k,
-                  const T* w_k1, T* r) const {
-    const Eigen::Map<const Vec3<T>> va(v_k), vb(v_k1), wa(w_k), wb(w_k1);
-    const Quat<T> q_mid = interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
-                                              Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
+  bool atMidpoint(const Quat<T>& q_mid, const T* const* blocks, T* r) const {
+    const Eigen::Map<const Vec3<T>> va(blocks[2]), vb(blocks[3]), wa(blocks[4]), wb(blocks[5]);
     const Vec3<T> v_mid = T(0.5) * (va + vb), w_mid = T(0.5) * (wa + wb);
     const Vec3<T> w_dot = (wb - wa) / T(dt);
     const Vec3<T> v_dot = sensors::velocityRateFromAccel<T>(accel.cast<T>(), q_mid, v_mid, w_mid,
@@ -41,9 +41,27 @@ struct AccelVelocityProcessResidual {
     return true;
   }
 
+  /// The whole residual in one template (the full-autodiff twin of Create's cost function).
+  template <typename T>
+  bool operator()(const T* q_k, const T* q_k1, const T* v_k, const T* v_k1, const T* w_k,
+                  const T* w_k1, T* r) const {
+    const Quat<T> q_mid = interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
+                                              Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
+    const T* blocks[] = {q_k, q_k1, v_k, v_k1, w_k, w_k1};
+    return atMidpoint(q_mid, blocks, r);
+  }
+
+  /// Differentiated in two stages (midpoint_attitude_cost.h).
   static ceres::CostFunction* Create(double dt, const Vec3d& mean_accel_mps2,
                                      const Vec3d& lever_arm_m, double gravity_mps2,
                                      double sqrt_info) {
+    return new MidpointAttitudeCost<AccelVelocityProcessResidual, 3, 0, 1, 4, 4, 3, 3, 3, 3>(
+        AccelVelocityProcessResidual(dt, mean_accel_mps2, lever_arm_m, gravity_mps2, sqrt_info));
+  }
+  /// One 20-wide AutoDiffCostFunction over operator() (tests compare the two).
+  static ceres::CostFunction* CreateFullAutodiff(double dt, const Vec3d& mean_accel_mps2,
+                                                 const Vec3d& lever_arm_m, double gravity_mps2,
+                                                 double sqrt_info) {
     return new ceres::AutoDiffCostFunction<AccelVelocityProcessResidual, 3, 4, 4, 3, 3, 3, 3>(
         new AccelVelocityProcessResidual(dt, mean_accel_mps2, lever_arm_m, gravity_mps2,
                                          sqrt_info));

@@ -12,28 +12,44 @@
 #include <ceres/autodiff_cost_function.h>
 
 #include "traverse/smoother/residuals/interpolation.h"
+#include "traverse/smoother/residuals/midpoint_attitude_cost.h"
 
 namespace traverse::smoother {
 
 struct PositionProcessResidual {
   PositionProcessResidual(double dt, double sqrt_info) : dt(dt), sqrt_info(sqrt_info) {}
 
+  /// The residual given the midpoint attitude; blocks in the cost function's order (2 and 3,
+  /// the attitudes, are not read).
   template <typename T>
-  bool operator()(const T* x_k, const T* x_k1, const T* q_k, const T* q_k1, const T* v_k,
-                  const T* v_k1, T* r) const {
-    const Eigen::Map<const Vec3<T>> xa(x_k), xb(x_k1), va(v_k), vb(v_k1);
-    const Quat<T> q_mid = interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
-                                              Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
+  bool atMidpoint(const Quat<T>& q_mid, const T* const* blocks, T* r) const {
+    const Eigen::Map<const Vec3<T>> xa(blocks[0]), xb(blocks[1]), va(blocks[4]), vb(blocks[5]);
     const Vec3<T> v_mid = T(0.5) * (va + vb);
     Eigen::Map<Vec3<T>>{r} = T(sqrt_info) * (xb - xa - (q_mid * v_mid) * T(dt));
     return true;
+  }
+
+  /// The whole residual in one template (the full-autodiff twin of Create's cost function).
+  template <typename T>
+  bool operator()(const T* x_k, const T* x_k1, const T* q_k, const T* q_k1, const T* v_k,
+                  const T* v_k1, T* r) const {
+    const Quat<T> q_mid = interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
+                                              Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
+    const T* blocks[] = {x_k, x_k1, q_k, q_k1, v_k, v_k1};
+    return atMidpoint(q_mid, blocks, r);
   }
 
   static double sqrtInfo(double dt, double q_v, double floor_m) {
     return 1.0 / std::sqrt(q_v * dt * dt * dt / 12.0 + floor_m * floor_m);
   }
 
+  /// Differentiated in two stages (midpoint_attitude_cost.h).
   static ceres::CostFunction* Create(double dt, double sqrt_info) {
+    return new MidpointAttitudeCost<PositionProcessResidual, 3, 2, 3, 3, 3, 4, 4, 3, 3>(
+        PositionProcessResidual(dt, sqrt_info));
+  }
+  /// One 20-wide AutoDiffCostFunction over operator() (tests compare the two).
+  static ceres::CostFunction* CreateFullAutodiff(double dt, double sqrt_info) {
     return new ceres::AutoDiffCostFunction<PositionProcessResidual, 3, 3, 3, 4, 4, 3, 3>(
         new PositionProcessResidual(dt, sqrt_info));
   }
