@@ -5,6 +5,8 @@
 # processes, interleaved, and the table shows the run with the median total: on this VM one
 # process's 1 000-node time can differ from the next one's by 25 %, while the 10 repeats inside
 # a process agree within a few per cent.
+# TRAVERSE_BENCH_CACHE=DIR keeps the simulated logs between runs; BM_ScalingRatio (run by hand,
+# docs/results.md) measures the ratio with both sizes interleaved in one process.
 #   [REPEATS=k] scripts/run_smoother_bench.sh [build/release/benchmarks/bench_smoother] [sizes...]
 set -euo pipefail
 bench=${1:-build/release/benchmarks/bench_smoother}
