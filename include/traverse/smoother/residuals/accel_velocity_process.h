@@ -45,10 +45,8 @@ struct AccelVelocityProcessResidual {
   template <typename T>
   bool operator()(const T* q_k, const T* q_k1, const T* v_k, const T* v_k1, const T* w_k,
                   const T* w_k1, T* r) const {
-    const Quat<T> q_mid = interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
-                                              Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
     const T* blocks[] = {q_k, q_k1, v_k, v_k1, w_k, w_k1};
-    return atMidpoint(q_mid, blocks, r);
+    return atMidpoint(midpointAttitude(q_k, q_k1), blocks, r);
   }
 
   /// Differentiated in two stages (midpoint_attitude_cost.h).

@@ -17,4 +17,11 @@ Quat<T> interpolateAttitude(const Quat<T>& q_k, const Quat<T>& q_k1, double u) {
   return so3::boxplus(q_k, Vec3<T>(T(u) * d));
 }
 
+/// The geodesic midpoint q(½) of two stored quaternions (x, y, z, w).
+template <typename T>
+Quat<T> midpointAttitude(const T* q_k, const T* q_k1) {
+  return interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
+                             Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
+}
+
 }  // namespace traverse::smoother

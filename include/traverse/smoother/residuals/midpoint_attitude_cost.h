@@ -39,9 +39,7 @@ class MidpointAttitudeCost final : public ceres::SizedCostFunction<kResiduals, k
 
   bool Evaluate(double const* const* p, double* r, double** J) const override {
     if (!J) {
-      const Quatd q_mid = interpolateAttitude(Quatd(Eigen::Map<const Quatd>(p[kQa])),
-                                              Quatd(Eigen::Map<const Quatd>(p[kQb])), 0.5);
-      return f_.atMidpoint(q_mid, p, r);
+      return f_.atMidpoint(midpointAttitude(p[kQa], p[kQb]), p, r);
     }
     // Stage 1: q̄ and ∂q̄/∂q_k (derivative slots 0–3), ∂q̄/∂q_{k+1} (slots 4–7).
     using J8 = ceres::Jet<double, 8>;

@@ -33,10 +33,8 @@ struct PositionProcessResidual {
   template <typename T>
   bool operator()(const T* x_k, const T* x_k1, const T* q_k, const T* q_k1, const T* v_k,
                   const T* v_k1, T* r) const {
-    const Quat<T> q_mid = interpolateAttitude(Quat<T>(Eigen::Map<const Quat<T>>(q_k)),
-                                              Quat<T>(Eigen::Map<const Quat<T>>(q_k1)), 0.5);
     const T* blocks[] = {x_k, x_k1, q_k, q_k1, v_k, v_k1};
-    return atMidpoint(q_mid, blocks, r);
+    return atMidpoint(midpointAttitude(q_k, q_k1), blocks, r);
   }
 
   static double sqrtInfo(double dt, double q_v, double floor_m) {
