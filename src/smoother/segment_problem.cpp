@@ -547,7 +547,7 @@ bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
   const int node_dim = 18 + (randomWalkBias() ? bias_dim : 0);
   const int global_dim = randomWalkBias() ? 0 : bias_dim;
   est::ChainInformation H = est::makeChainInformation(static_cast<int>(n_), node_dim, global_dim);
-  std::vector<double> residuals, jacobian;
+  std::vector<double> jacobian;
   std::array<est::ChainPlace, kMaxBlocksPerResidual> places;
   std::array<double*, kMaxBlocksPerResidual> jacobians{};
   for (const ResidualEntry& e : residuals_) {
@@ -556,12 +556,11 @@ bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
       places[static_cast<size_t>(i)] = place(e.blocks[static_cast<size_t>(i)]);
       cols += places[static_cast<size_t>(i)].size;
     }
-    residuals.resize(static_cast<size_t>(e.num_rows));
     jacobian.resize(static_cast<size_t>(e.num_rows * cols));
     for (int i = 0, c = 0; i < e.num_blocks; c += places[static_cast<size_t>(i)].size, ++i)
       jacobians[static_cast<size_t>(i)] = jacobian.data() + static_cast<ptrdiff_t>(e.num_rows * c);
     if (!evaluator_.evaluate(*e.f, e.loss, e.parameterBlocks(), e.blockManifolds(), nullptr,
-                             residuals.data(), jacobians.data()))
+                             nullptr, jacobians.data()))
       return false;
     est::addChainResidual(H, std::span(places.data(), static_cast<size_t>(e.num_blocks)),
                           jacobians.data(), e.num_rows);
