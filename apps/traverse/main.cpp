@@ -1,6 +1,9 @@
 // traverse — reconstruct a rover traverse from logged telemetry (docs/cli.md).
+#include <malloc.h>
+
 #include <cstdlib>
 #include <iostream>
+#include <limits>
 #include <vector>
 
 #include <glog/logging.h>
@@ -25,6 +28,13 @@ std::filesystem::path datasetsDir() {
 
 int main(int argc, char** argv) {
   using namespace traverse;
+  // Keep freed memory in the process. Each smoother segment builds and frees a Ceres problem of
+  // tens to hundreds of MB; by default glibc serves the large blocks with mmap and hands freed
+  // heap tops back to the kernel, so the next segment faults every page in again (on this
+  // project's VM about 6 µs per page: 0.5 s of a 10 000-node solve). The process is short-lived
+  // and its peak is what it needs anyway (docs/results.md, "Speed").
+  mallopt(M_MMAP_MAX, 0);
+  mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
   // Ceres logs through glog, and a failed residual evaluation dumps whole parameter blocks as
   // warnings, several per segment. The smoother reports such a segment itself (fallback_ekf and
   // the reason), so only errors get through: one line per failed solve, on stderr, no log files.

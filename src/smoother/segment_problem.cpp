@@ -122,6 +122,22 @@ struct ResidualEntry {
   }
 };
 
+/// The last cost function made for one kind of residual and the numbers that define it. Nodes are
+/// mostly equally spaced, so consecutive process residuals (attitude, position, rate, contact,
+/// zero motion) are often the same function of their parameter blocks: one cost function then
+/// serves every such residual block (Ceres evaluates a cost function for any number of them),
+/// which saves an allocation, a free and its cache lines per node. Any change of a defining
+/// number (Δt, a weight, a command) makes a new one.
+struct CostMemo {
+  static constexpr size_t kMaxKey = 12;
+  std::array<double, kMaxKey> key{};
+  size_t size = 0;
+  ceres::CostFunction* f = nullptr;
+  bool matches(std::span<const double> k) const {
+    return f != nullptr && k.size() == size && std::equal(k.begin(), k.end(), key.begin());
+  }
+};
+
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -169,10 +185,31 @@ class SegmentBuilder {
   bool randomWalkBias() const { return o_.bias_model == SmootherOptions::BiasModel::kRandomWalk; }
   double* bias(size_t k) { return randomWalkBias() ? nodes_[k].b : segment_bias_; }
 
+  /// Adds a residual block with a new cost function, which the builder then owns.
   template <typename... Blocks>
   void add(const char* kind, ceres::CostFunction* f, ceres::LossFunction* loss, Blocks*... blocks) {
-    static_assert(sizeof...(Blocks) <= kMaxBlocksPerResidual);
     costs_.emplace_back(f);
+    addBlock(kind, f, loss, blocks...);
+  }
+  /// Adds a residual block whose cost function is make() — or the memo's, when `key` (the numbers
+  /// that define it) equals the one it was made with (CostMemo).
+  template <typename Make, typename... Blocks>
+  void addShared(const char* kind, CostMemo& memo, std::initializer_list<double> key, Make make,
+                 ceres::LossFunction* loss, Blocks*... blocks) {
+    const std::span<const double> k(key.begin(), key.size());
+    if (!memo.matches(k)) {
+      if (k.size() > CostMemo::kMaxKey) throw std::logic_error("smoother: cost memo key too long");
+      std::copy(k.begin(), k.end(), memo.key.begin());
+      memo.size = k.size();
+      memo.f = make();
+      costs_.emplace_back(memo.f);
+    }
+    addBlock(kind, memo.f, loss, blocks...);
+  }
+  template <typename... Blocks>
+  void addBlock(const char* kind, ceres::CostFunction* f, ceres::LossFunction* loss,
+                Blocks*... blocks) {
+    static_assert(sizeof...(Blocks) <= kMaxBlocksPerResidual);
     const ceres::ResidualBlockId id = problem_->AddResidualBlock(f, loss, blocks...);
     residuals_.push_back({id,
                           f,
@@ -227,6 +264,9 @@ class SegmentBuilder {
   std::unique_ptr<ceres::Manifold> bias_manifold_;
   std::unique_ptr<ceres::LossFunction> loss_, contact_loss_;
   std::map<std::string, std::vector<ceres::ResidualBlockId>> by_kind_;
+  CostMemo attitude_memo_, position_memo_, rate_memo_, velocity_memo_, zero_velocity_memo_,
+      zero_rate_memo_;
+  std::array<CostMemo, rover::kNumWheels> contact_memo_;
   BlockEvaluator evaluator_;
 };
 
@@ -363,22 +403,27 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
   const Vec3d att_info =
       at_rest ? Vec3d::Constant(1.0 / (o_.zero_rate_sigma_rad_s * dt))
               : AttitudeProcessResidual::sqrtInfo(dt, Vec3d::Constant(q_w), o_.attitude_floor_rad);
-  add("attitude", AttitudeProcessResidual::Create(dt, att_info), nullptr, a.q, b.q, a.w, b.w);
+  addShared(
+      "attitude", attitude_memo_, {dt, att_info[0], att_info[1], att_info[2]},
+      [&] { return AttitudeProcessResidual::Create(dt, att_info); }, nullptr, a.q, b.q, a.w, b.w);
   const bool accel = d_.accel_driven && !at_rest;
   const double q_a = cfg_.accel.noise_mps2 * cfg_.accel.noise_mps2 * d_.accel_period_s;
   const double q_v =
       accel ? q_a : pc.velocity_noise_mps2_per_sqrt_hz * pc.velocity_noise_mps2_per_sqrt_hz;
   const double pos_info = at_rest ? 1.0 / (o_.zero_velocity_sigma_mps * dt)
                                   : PositionProcessResidual::sqrtInfo(dt, q_v, o_.position_floor_m);
-  add("position", PositionProcessResidual::Create(dt, pos_info), nullptr, a.x, b.x, a.q, b.q, a.v,
-      b.v);
+  addShared(
+      "position", position_memo_, {dt, pos_info},
+      [&] { return PositionProcessResidual::Create(dt, pos_info); }, nullptr, a.x, b.x, a.q, b.q,
+      a.v, b.v);
   // Rate and velocity perturbations (K-1, K-2): around the command when there is one, random
   // walks otherwise (K §4.2); the velocity driven by the accelerometer instead (O-4).
   const Vec3d a_w = Vec3d::Constant(d_.has_cmd ? -1.0 / pc.rate_time_constant_s : 0.0);
-  add("rate",
-      new MarkovProcessResidual<3>(dt, a_w, Vec3d::Constant(q_w), d_.cmd.row(i0).tail<3>(),
-                                   d_.cmd.row(i1).tail<3>()),
-      nullptr, a.w, b.w);
+  const Vec3d w0 = d_.cmd.row(i0).tail<3>(), w1 = d_.cmd.row(i1).tail<3>();
+  addShared(
+      "rate", rate_memo_, {dt, a_w[0], q_w, w0[0], w0[1], w0[2], w1[0], w1[1], w1[2]},
+      [&] { return new MarkovProcessResidual<3>(dt, a_w, Vec3d::Constant(q_w), w0, w1); }, nullptr,
+      a.w, b.w);
   if (accel) {
     const Vec3d mean_accel = d_.accel.integral(t0, t1) / dt;
     add("accel_velocity",
@@ -387,19 +432,21 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
         nullptr, a.q, b.q, a.v, b.v, a.w, b.w);
   } else {
     const Vec3d a_v = Vec3d::Constant(d_.has_cmd ? -1.0 / pc.velocity_time_constant_s : 0.0);
-    add("velocity",
-        new MarkovProcessResidual<3>(dt, a_v, Vec3d::Constant(q_v), d_.cmd.row(i0).head<3>(),
-                                     d_.cmd.row(i1).head<3>()),
+    const Vec3d v0 = d_.cmd.row(i0).head<3>(), v1 = d_.cmd.row(i1).head<3>();
+    addShared(
+        "velocity", velocity_memo_, {dt, a_v[0], q_v, v0[0], v0[1], v0[2], v1[0], v1[1], v1[2]},
+        [&] { return new MarkovProcessResidual<3>(dt, a_v, Vec3d::Constant(q_v), v0, v1); },
         nullptr, a.v, b.v);
   }
   // Contact angles (K-8).
   const double n_xi = pc.contact_angle_noise_rad_per_sqrt_s;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   if (contact_loss_) {  // per wheel, heavy-tailed (SmootherOptions::contact_loss_scale)
+    const double a_xi = -1.0 / pc.contact_angle_time_constant_s;
     for (int i = 0; i < rover::kNumWheels; ++i)
-      add("contact",
-          new MarkovComponentResidual<6>(i, dt, -1.0 / pc.contact_angle_time_constant_s,
-                                         n_xi * n_xi),
+      addShared(
+          "contact", contact_memo_[static_cast<size_t>(i)], {dt, a_xi, n_xi},
+          [&] { return new MarkovComponentResidual<6>(i, dt, a_xi, n_xi * n_xi); },
           contact_loss_.get(), a.xi, b.xi);
   } else {
     add("contact",
@@ -449,8 +496,12 @@ void SegmentBuilder::addSlipResiduals(size_t k) {
 
 void SegmentBuilder::addZeroMotionResiduals(size_t k) {
   if (!rest_[k]) return;
-  add("zero_velocity", new ZeroMotionResidual(o_.zero_velocity_sigma_mps), nullptr, nodes_[k].v);
-  add("zero_rate", new ZeroMotionResidual(o_.zero_rate_sigma_rad_s), nullptr, nodes_[k].w);
+  addShared(
+      "zero_velocity", zero_velocity_memo_, {o_.zero_velocity_sigma_mps},
+      [&] { return new ZeroMotionResidual(o_.zero_velocity_sigma_mps); }, nullptr, nodes_[k].v);
+  addShared(
+      "zero_rate", zero_rate_memo_, {o_.zero_rate_sigma_rad_s},
+      [&] { return new ZeroMotionResidual(o_.zero_rate_sigma_rad_s); }, nullptr, nodes_[k].w);
 }
 
 void SegmentBuilder::addRestWindowResiduals() {
@@ -591,6 +642,10 @@ SegmentSolution SegmentBuilder::solve() {
   SegmentSummary& sum = out.summary;
   const auto t0 = std::chrono::steady_clock::now();
   addParameterBlocks();
+  // About 18 residual blocks per moving node (process 10, slip 6, gyro, sun); reserving them
+  // keeps the two lists from being copied as they grow (at 10 000 nodes, 170 000 entries).
+  residuals_.reserve(18 * n_ + 64);
+  costs_.reserve(18 * n_ + 64);
   // Residuals node by node, so that Ceres' Jacobian rows run in time order like its columns
   // (chain ordering): forming JᵀJ and evaluating then sweep memory once, locally, instead of
   // once per kind of residual over the whole problem.
