@@ -29,10 +29,10 @@ std::filesystem::path datasetsDir() {
 int main(int argc, char** argv) {
   using namespace traverse;
   // Keep freed memory in the process. Each smoother segment builds and frees a Ceres problem of
-  // tens to hundreds of MB; by default glibc serves the large blocks with mmap and hands freed
-  // heap tops back to the kernel, so the next segment faults every page in again (on this
-  // project's VM about 6 µs per page: 0.5 s of a 10 000-node solve). The process is short-lived
-  // and its peak is what it needs anyway (docs/results.md, "Speed").
+  // tens to hundreds of MB; by default glibc serves its large blocks with mmap and hands freed
+  // heap tops back to the kernel, so the next segment faults every page in again (a 10 000-node
+  // segment: ~70 000 faults per solve, 2.31 s instead of 1.37 s; docs/results.md, "Speed"). The
+  // process is short-lived and its peak is what it needs anyway.
   mallopt(M_MMAP_MAX, 0);
   mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
   // Ceres logs through glog, and a failed residual evaluation dumps whole parameter blocks as
