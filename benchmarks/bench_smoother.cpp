@@ -1,12 +1,13 @@
 // Smoother speed on one synthetic long segment of 1 000, 10 000 and 100 000 nodes: straight-1m
 // stretched (rest, straight L m at 0.05 m/s, rest, each rest a tenth of the segment; joints at
-// 20 Hz, so one node per 50 ms) over rough terrain (2 cm RMS, statistically the same everywhere: K-22's sin(0.75 x y)
-// gets ever rougher across the path with x, and has no contact configuration by x ≈ 49 m), and
-// solved as ONE segment spanning every node with both rest windows. Each iteration is
-// one solveSegment (build + Levenberg-Marquardt + marginal covariances, single-threaded Ceres).
-// Counters: time per node per LM iteration, total to convergence, the solver's own split, and
-// the peak resident memory during the timed runs (VmHWM, reset after set-up; process-wide, so run
-// one size per process — scripts/run_smoother_bench.sh does, and prints the scaling table).
+// 20 Hz, so one node per 50 ms) over rough terrain (2 cm RMS, statistically the same everywhere:
+// K-22's sin(0.75 x y) gets ever rougher across the path with x, and has no contact configuration
+// by x ≈ 49 m), and solved as ONE segment spanning every node with both rest windows. Each
+// iteration is one solveSegment (build + Levenberg-Marquardt + marginal covariances,
+// single-threaded Ceres). Counters: time per node per LM iteration, total to convergence, the
+// solver's own split, and the peak resident memory during the timed runs (VmHWM, reset after
+// set-up; process-wide, so run one size per process — scripts/run_smoother_bench.sh does, and
+// prints the scaling table).
 //   build/release/benchmarks/bench_smoother --benchmark_filter='^BM_SmoothSegment/1000/'
 // BM_ScalingRatio times the two sizes against each other in one process, interleaved: each round
 // is ten 1 000-node solves then one 10 000-node solve, and the round's ratio is the large solve
@@ -17,7 +18,7 @@
 // TRAVERSE_BENCH_CACHE=DIR to keep the simulated logs in DIR between runs (the 10 000-node log
 // takes ~50 s to simulate; the log reads back bit for bit, io/log_writer.h).
 #include <benchmark/benchmark.h>
-#include <malloc.h>
+#include <malloc.h>  // malloc_trim
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -25,13 +26,13 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
-#include <limits>
 #include <map>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "traverse/core/memory.h"
 #include "traverse/estimators/pipeline.h"
 #include "traverse/io/log_reader.h"
 #include "traverse/io/log_writer.h"
@@ -42,17 +43,16 @@ namespace {
 
 using namespace traverse;
 
-/// The allocator set up as the traverse CLI sets it (apps/traverse/main.cpp): freed memory stays
-/// in the process for the next solve instead of going back to the kernel and being faulted in
-/// again, page by page, on the next one.
-/// TRAVERSE_BENCH_DEFAULT_MALLOC=1 leaves glibc's defaults, to measure the difference.
-const bool kAllocatorSetUp = [] {
-  if (const char* v = std::getenv("TRAVERSE_BENCH_DEFAULT_MALLOC"); v && std::string(v) == "1")
-    return false;
-  mallopt(M_MMAP_MAX, 0);
-  mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
-  return true;
-}();
+/// True when the environment variable is set to 1.
+bool envFlag(const char* name) {
+  const char* v = std::getenv(name);
+  return v != nullptr && std::string(v) == "1";
+}
+
+/// The allocator set up as the traverse CLI sets it (core/memory.h): freed memory stays in the
+/// process for the next solve. TRAVERSE_BENCH_DEFAULT_MALLOC=1 leaves glibc's defaults, to
+/// measure the difference.
+const bool kAllocatorSetUp = !envFlag("TRAVERSE_BENCH_DEFAULT_MALLOC") && retainFreedMemory();
 
 const std::filesystem::path kDatasets = std::filesystem::path(TRAVERSE_SOURCE_DIR) / "datasets";
 
@@ -92,8 +92,7 @@ smoother::SmootherOptions options(bool covariance) {
   smoother::SmootherOptions o;
   o.covariance = covariance;
   o.threads = 1;
-  const char* report = std::getenv("TRAVERSE_SMOOTHER_REPORT");
-  o.solver_report = report != nullptr && std::string(report) == "1";
+  o.solver_report = envFlag("TRAVERSE_SMOOTHER_REPORT");
   return o;
 }
 
@@ -109,8 +108,7 @@ const Case& syntheticSegment(int nodes) {
   // accelerometer process), and with fixed 5 s rests the 1 000-node case would be 20 % rest and
   // the 10 000-node one 2 %, which inflates the time ratio by itself (about 2 %).
   // TRAVERSE_BENCH_FIXED_RESTS=1 keeps 5 s rests at every size (the sessions-2-to-4 definition).
-  const bool fixed_rests = std::getenv("TRAVERSE_BENCH_FIXED_RESTS") != nullptr &&
-                           std::string(std::getenv("TRAVERSE_BENCH_FIXED_RESTS")) == "1";
+  const bool fixed_rests = envFlag("TRAVERSE_BENCH_FIXED_RESTS");
   const double speed = 0.05, ramp = 2.0, joints_hz = 20.0;
   const double rest = fixed_rests ? 5.0 : 0.1 * nodes / joints_hz;
   const double length = speed * (nodes / joints_hz - 2.0 * rest - ramp);
@@ -158,7 +156,7 @@ void smoothSegment(benchmark::State& state, bool covariance) {
   // One untimed solve first, at every size: the allocator's heap then holds the pages every
   // timed solve reuses (1k averages 10 solves, 10k 5 and 100k 1, so a cold first solve would
   // weigh 10x more at 100k than at 1k). First-touch cost is reported by page_faults_per_solve.
-  if (std::getenv("TRAVERSE_BENCH_COLD") == nullptr) {
+  if (!envFlag("TRAVERSE_BENCH_COLD")) {
     smoother::SegmentSolution warm = smoother::solveSegment(*c.data, c.spec, o);
     benchmark::DoNotOptimize(warm);
   }

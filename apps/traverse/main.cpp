@@ -1,15 +1,13 @@
 // traverse — reconstruct a rover traverse from logged telemetry (docs/cli.md).
-#include <malloc.h>
-
 #include <cstdlib>
 #include <iostream>
-#include <limits>
 #include <vector>
 
 #include <glog/logging.h>
 
 #include "commands.h"
 #include "traverse/core/error.h"
+#include "traverse/core/memory.h"
 
 namespace traverse::app {
 
@@ -28,13 +26,7 @@ std::filesystem::path datasetsDir() {
 
 int main(int argc, char** argv) {
   using namespace traverse;
-  // Keep freed memory in the process. Each smoother segment builds and frees a Ceres problem of
-  // tens to hundreds of MB; by default glibc serves its large blocks with mmap and hands freed
-  // heap tops back to the kernel, so the next segment faults every page in again (a 10 000-node
-  // segment: ~70 000 faults per solve, 2.31 s instead of 1.37 s; docs/results.md, "Speed"). The
-  // process is short-lived and its peak is what it needs anyway.
-  mallopt(M_MMAP_MAX, 0);
-  mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
+  retainFreedMemory();  // each segment reuses the previous one's pages (core/memory.h)
   // Ceres logs through glog, and a failed residual evaluation dumps whole parameter blocks as
   // warnings, several per segment. The smoother reports such a segment itself (fallback_ekf and
   // the reason), so only errors get through: one line per failed solve, on stderr, no log files.
