@@ -9,8 +9,8 @@
 // set-up; process-wide, so run one size per process — scripts/run_smoother_bench.sh does, and
 // prints the scaling table).
 //   build/release/benchmarks/bench_smoother --benchmark_filter='^BM_SmoothSegment/1000/'
-// BM_ScalingRatio times the two sizes against each other in one process, interleaved: each round
-// is ten 1 000-node solves then one 10 000-node solve, and the round's ratio is the large solve
+// BM_ScalingRatio/N times N against 10 N nodes in one process, interleaved: each round is ten
+// N-node solves then one 10 N-node solve, and the round's ratio is the large solve
 // over the median small one. This VM's speed drifts by 15–40 % between minutes (shared memory
 // bandwidth), so ratios taken from separate processes minutes apart measure the drift as much as
 // the code; adjacent solves see the same machine. It reports the median ratio and its range.
@@ -241,6 +241,9 @@ void BM_ScalingRatio(benchmark::State& state) {
 }
 
 BENCHMARK(BM_ScalingRatio)->Arg(1000)->Iterations(7)->Unit(benchmark::kSecond)->UseRealTime();
+// 10 000 against 100 000 nodes: 3 rounds of ten 10k solves and one 100k solve (~2 min a round,
+// plus ~5 min to simulate the 100k log once without TRAVERSE_BENCH_CACHE).
+BENCHMARK(BM_ScalingRatio)->Arg(10000)->Iterations(3)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(BM_SmoothSegment)
     ->Arg(1000)
     ->Iterations(10)
