@@ -22,12 +22,14 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <map>
 #include <memory>
+#include <numeric>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -198,14 +200,38 @@ void BM_SmoothSegmentNoCovariance(benchmark::State& state) {
   smoothSegment(state, false);
 }
 
-/// Wall time of one solveSegment, the solution's destruction included.
-double timedSolve(const Case& c, const smoother::SmootherOptions& o) {
+/// One solveSegment's wall time split by phase (SegmentSummary's timings). "other" is the rest:
+/// Ceres' post-processing, copying the solution out, and tearing the problem down.
+struct Phases {
+  static constexpr std::array<const char*, 9> kNames = {
+      "build",           "seed",       "preprocess", "jacobian", "residual", "linear",
+      "minimizer_other", "covariance", "other"};
+  std::array<double, kNames.size()> s{};
+  double total() const { return std::accumulate(s.begin(), s.end(), 0.0); }
+  Phases& operator+=(const Phases& o) {
+    for (size_t i = 0; i < s.size(); ++i) s[i] += o.s[i];
+    return *this;
+  }
+};
+
+/// Wall time of one solveSegment, the solution's destruction included, and its phases.
+Phases timedSolve(const Case& c, const smoother::SmootherOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
+  smoother::SegmentSummary m;
   {
     smoother::SegmentSolution sol = smoother::solveSegment(*c.data, c.spec, o);
+    m = sol.summary;
     benchmark::DoNotOptimize(sol);
   }
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  Phases p;
+  const double minimizer_other = m.ceres_minimizer_seconds - m.ceres_jacobian_seconds -
+                                 m.ceres_residual_seconds - m.ceres_linear_solver_seconds;
+  p.s = {m.build_seconds,          m.seed_seconds,           m.ceres_preprocess_seconds,
+         m.ceres_jacobian_seconds, m.ceres_residual_seconds, m.ceres_linear_solver_seconds,
+         minimizer_other,          m.covariance_seconds,     0.0};
+  p.s.back() = wall - p.total();
+  return p;
 }
 
 double median(std::vector<double> v) {
@@ -222,11 +248,17 @@ void BM_ScalingRatio(benchmark::State& state) {
   const smoother::SmootherOptions o = options(true);
   timedSolve(small, o), timedSolve(large, o);  // warm-up: first-touch of the allocator's heap
   std::vector<double> ratios, small_s, large_s;
+  Phases small_phases, large_phases;  // summed over all solves, to split the ratio by phase
   for (auto _ : state) {
     std::vector<double> round;
-    for (int i = 0; i < 10; ++i) round.push_back(timedSolve(small, o));
-    const double s = median(round), l = timedSolve(large, o);
-    small_s.push_back(s), large_s.push_back(l), ratios.push_back(l / s);
+    for (int i = 0; i < 10; ++i) {
+      const Phases p = timedSolve(small, o);
+      round.push_back(p.total()), small_phases += p;
+    }
+    const Phases l = timedSolve(large, o);
+    large_phases += l;
+    const double s = median(round);
+    small_s.push_back(s), large_s.push_back(l.total()), ratios.push_back(l.total() / s);
   }
   state.counters["ratio_median"] = median(ratios);
   state.counters["ratio_min"] = *std::min_element(ratios.begin(), ratios.end());
@@ -238,6 +270,14 @@ void BM_ScalingRatio(benchmark::State& state) {
   state.counters["large_min_s"] = *std::min_element(large_s.begin(), large_s.end());
   state.counters["large_max_s"] = *std::max_element(large_s.begin(), large_s.end());
   state.counters["rounds"] = static_cast<double>(ratios.size());
+  // Per phase: the large solves' mean time in ms, and its ratio to the small solves' mean, so
+  // the phases that grow faster than the node count stand out.
+  const double rounds = static_cast<double>(ratios.size());
+  for (size_t i = 0; i < Phases::kNames.size(); ++i) {
+    const double l = large_phases.s[i] / rounds, s = small_phases.s[i] / (10 * rounds);
+    state.counters[std::string("ms_") + Phases::kNames[i]] = l * 1e3;
+    state.counters[std::string("x_") + Phases::kNames[i]] = s > 0 ? l / s : 0.0;
+  }
 }
 
 BENCHMARK(BM_ScalingRatio)->Arg(1000)->Iterations(7)->Unit(benchmark::kSecond)->UseRealTime();

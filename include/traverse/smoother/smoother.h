@@ -86,6 +86,12 @@ struct SegmentSummary {
   std::string message;  ///< the solver's termination message, or why the segment fell back
   double solve_seconds = 0.0, covariance_seconds = 0.0;  ///< solve includes building
   double build_seconds = 0.0;
+  /// Where solve_seconds went after building: the seed (EKF cost, self-consistent seed, its
+  /// cost), Ceres' preprocessing (program, ordering, evaluator) and its minimiser, split into
+  /// Jacobian evaluations, residual-only evaluations and linear solves.
+  double seed_seconds = 0.0, ceres_preprocess_seconds = 0.0, ceres_minimizer_seconds = 0.0;
+  double ceres_jacobian_seconds = 0.0, ceres_residual_seconds = 0.0;
+  double ceres_linear_solver_seconds = 0.0;
   int residual_blocks = 0, parameters = 0;
   double stitch_translation_m = 0.0, stitch_rotation_rad = 0.0;
 };
