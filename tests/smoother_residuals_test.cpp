@@ -647,6 +647,19 @@ TEST(SmootherResidualSlip, JacobiansMatchNumericAndAutodiffTwin) {
         EXPECT_EQ(J[2].col(c).norm(), 0.0);
       }
     }
+
+    // The smoother's form, which refers to numbers kept in its own array (SlipWheelData), is
+    // the same function bit for bit.
+    const SlipWheelData data{kin[i].T_body_wheel, geo.wheels[i].radius, jt,
+                             randomVector<4>(rng, 0.02), L_inv};
+    const SlipResidual owning(i, data.T_body_wheel, data.radius, data.joint_twist,
+                              data.nominal_slip, data.sqrt_info);
+    const SlipResidual referring(i, &data);
+    const Params at{block(v), block(w), block(xi)};
+    EXPECT_EQ(evaluate(owning, at), evaluate(referring, at));
+    const auto J_own = reportedJacobians(owning, at, {false, false, false});
+    const auto J_ref = reportedJacobians(referring, at, {false, false, false});
+    for (size_t b = 0; b < J_own.size(); ++b) EXPECT_EQ(J_own[b], J_ref[b]);
   }
 }
 

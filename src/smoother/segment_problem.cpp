@@ -261,6 +261,9 @@ class SegmentBuilder {
   Vec3d gyro_axes_;
   std::vector<std::unique_ptr<ceres::CostFunction>> costs_;  ///< outlive problem_ (declared first)
   std::vector<ResidualEntry> residuals_;
+  /// Every slip residual's numbers, one array (SlipResidual refers to them): reserved for all
+  /// nodes before the first is added, so the addresses never move.
+  std::vector<SlipWheelData> slip_data_;
   std::unique_ptr<ceres::Problem> problem_;
   BodyQuaternionManifold quaternion_manifold_;
   std::unique_ptr<ceres::Manifold> bias_manifold_;
@@ -501,10 +504,11 @@ void SegmentBuilder::addSlipResiduals(size_t k) {
         est::slipCovariance(cfg_.slip_noise, js, i, s.v_body, s.w_body, J.leftCols<6>());
     const Vec4d nominal =
         rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, js.joint_twist[i]);
-    add("slip",
-        new SlipResidual(i, js.T_body_wheel[i], radius, js.joint_twist[i], nominal,
-                         sqrtInformation<4>(R, "slip")),
-        loss_.get(), b.v, b.w, b.xi);
+    if (slip_data_.size() == slip_data_.capacity())
+      throw std::logic_error("smoother: slip data would move under its cost functions");
+    slip_data_.push_back(
+        {js.T_body_wheel[i], radius, js.joint_twist[i], nominal, sqrtInformation<4>(R, "slip")});
+    add("slip", new SlipResidual(i, &slip_data_.back()), loss_.get(), b.v, b.w, b.xi);
   }
 }
 
@@ -661,6 +665,7 @@ SegmentSolution SegmentBuilder::solve() {
   // from being copied as they grow (at 10 000 nodes, 170 000 entries).
   residuals_.reserve(18 * n_ + 64);
   costs_.reserve(10 * n_ + 64);
+  slip_data_.reserve(rover::kNumWheels * n_);
   // Residuals node by node, so that Ceres' Jacobian rows run in time order like its columns
   // (chain ordering): forming JᵀJ and evaluating then sweep memory once, locally, instead of
   // once per kind of residual over the whole problem.

@@ -17,38 +17,54 @@
 
 #include <ceres/sized_cost_function.h>
 
+#include <memory>
+
 #include "traverse/rover/slip_constraint.h"
 
 namespace traverse::smoother {
 
+/// The numbers that define wheel i's slip residual at one node.
+struct SlipWheelData {
+  Posed T_body_wheel;
+  double radius = 0.0;
+  Twistd joint_twist = Twistd::Zero();
+  Vec4d nominal_slip = Vec4d::Zero();
+  Eigen::Matrix4d sqrt_info = Eigen::Matrix4d::Identity();
+};
+
 class SlipResidual final : public ceres::SizedCostFunction<4, 3, 3, 6> {
  public:
+  /// Keeps its own copy of the numbers.
   SlipResidual(int wheel, const Posed& T_body_wheel, double radius, const Twistd& joint_twist,
                const Vec4d& nominal_slip, const Eigen::Matrix4d& sqrt_info)
       : wheel_(wheel),
-        T_body_wheel_(T_body_wheel),
-        radius_(radius),
-        joint_twist_(joint_twist),
-        nominal_(nominal_slip),
-        sqrt_info_(sqrt_info) {}
+        owned_(std::make_unique<SlipWheelData>(
+            SlipWheelData{T_body_wheel, radius, joint_twist, nominal_slip, sqrt_info})),
+        d_(owned_.get()) {}
+  /// Refers to numbers kept elsewhere, which must outlive it. The smoother keeps a segment's in
+  /// one array: the cost function is then 56 bytes instead of 350, and Ceres' passes over every
+  /// residual block's cost function (sizes, row counts) read a dense run of memory instead of
+  /// one cache line every 370 bytes (docs/results.md, "Speed", session 6).
+  SlipResidual(int wheel, const SlipWheelData* data) : wheel_(wheel), d_(data) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
     const Eigen::Map<const Vec3d> v(parameters[0]), w(parameters[1]);
     const double xi = parameters[2][wheel_];
     Eigen::Matrix<double, 4, 7> J;
+    const SlipWheelData& d = *d_;
     const Vec4d t =
-        rover::slipConstraintWithJacobian(T_body_wheel_, radius_, joint_twist_, v, w, xi, &J);
-    Eigen::Map<Vec4d>{residuals} = sqrt_info_ * (nominal_ - t);
+        rover::slipConstraintWithJacobian(d.T_body_wheel, d.radius, d.joint_twist, v, w, xi, &J);
+    Eigen::Map<Vec4d>{residuals} = d.sqrt_info * (d.nominal_slip - t);
     if (jacobians) {
       using Rm43 = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>;
       using Rm46 = Eigen::Matrix<double, 4, 6, Eigen::RowMajor>;
-      if (jacobians[0]) Eigen::Map<Rm43>{jacobians[0]} = -sqrt_info_ * J.leftCols<3>();
-      if (jacobians[1]) Eigen::Map<Rm43>{jacobians[1]} = -sqrt_info_ * J.middleCols<3>(3);
+      if (jacobians[0]) Eigen::Map<Rm43>{jacobians[0]} = -d.sqrt_info * J.leftCols<3>();
+      if (jacobians[1]) Eigen::Map<Rm43>{jacobians[1]} = -d.sqrt_info * J.middleCols<3>(3);
       if (jacobians[2]) {
         Eigen::Map<Rm46> Jxi(jacobians[2]);
         Jxi.setZero();
-        Jxi.col(wheel_) = -sqrt_info_ * J.col(6);
+        Jxi.col(wheel_) = -d.sqrt_info * J.col(6);
       }
     }
     return true;
@@ -57,18 +73,16 @@ class SlipResidual final : public ceres::SizedCostFunction<4, 3, 3, 6> {
   /// The same residual through the templated model (the autodiff twin the tests compare with).
   template <typename T>
   Vec4<T> residual(const Vec3<T>& v, const Vec3<T>& w, const Eigen::Matrix<T, 6, 1>& xi) const {
+    const SlipWheelData& d = *d_;
     const Vec4<T> t =
-        rover::slipConstraint<T>(T_body_wheel_, radius_, joint_twist_, v, w, xi[wheel_]);
-    return sqrt_info_.cast<T>() * (nominal_.cast<T>() - t);
+        rover::slipConstraint<T>(d.T_body_wheel, d.radius, d.joint_twist, v, w, xi[wheel_]);
+    return d.sqrt_info.cast<T>() * (d.nominal_slip.cast<T>() - t);
   }
 
  private:
   int wheel_;
-  Posed T_body_wheel_;
-  double radius_;
-  Twistd joint_twist_;
-  Vec4d nominal_;
-  Eigen::Matrix4d sqrt_info_;
+  std::unique_ptr<SlipWheelData> owned_;  ///< set by the owning constructor only
+  const SlipWheelData* d_;
 };
 
 }  // namespace traverse::smoother
