@@ -13,7 +13,11 @@
 // N-node solves then one 10 N-node solve, and the round's ratio is the large solve
 // over the median small one. This VM's speed drifts by 15–40 % between minutes (shared memory
 // bandwidth), so ratios taken from separate processes minutes apart measure the drift as much as
-// the code; adjacent solves see the same machine. It reports the median ratio and its range.
+// the code; adjacent solves see the same machine. It reports the median ratio and its range,
+// and per phase (SegmentSummary's split: build, seed, Ceres' preprocessing, Jacobian and
+// residual evaluations, linear solves, the rest of its minimiser, covariance, and "other" —
+// post-processing and teardown) the large solve's mean time (ms_*) and its ratio to the small
+// solve's (x_*), so a phase that grows faster than the node count shows.
 // Set TRAVERSE_SMOOTHER_REPORT=1 to print Ceres' full report (time breakdown) per solve, and
 // TRAVERSE_BENCH_CACHE=DIR to keep the simulated logs in DIR between runs (the 10 000-node log
 // takes ~50 s to simulate; the log reads back bit for bit, io/log_writer.h).
