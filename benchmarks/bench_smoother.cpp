@@ -16,9 +16,9 @@
 // the code; adjacent solves see the same machine. It reports the median ratio and its range,
 // and per phase (SegmentSummary's split: build, seed, Ceres' preprocessing, Jacobian and
 // residual evaluations, linear solves, the rest of its minimiser, covariance, and "other" —
-// post-processing and teardown) the large solve's mean time (ms_*) and its ratio to the small
-// solve's (x_*), so a phase that grows faster than the node count shows.
-// Set TRAVERSE_SMOOTHER_REPORT=1 to print Ceres' full report (time breakdown) per solve, and
+// the elimination ordering, post-processing and teardown) the large solve's mean time (ms_*) and
+// its ratio to the small solve's (x_*), so a phase that grows faster than the node count shows. Set
+// TRAVERSE_SMOOTHER_REPORT=1 to print Ceres' full report (time breakdown) per solve, and
 // TRAVERSE_BENCH_CACHE=DIR to keep the simulated logs in DIR between runs (the 10 000-node log
 // takes ~50 s to simulate; the log reads back bit for bit, io/log_writer.h).
 #include <benchmark/benchmark.h>
@@ -205,7 +205,8 @@ void BM_SmoothSegmentNoCovariance(benchmark::State& state) {
 }
 
 /// One solveSegment's wall time split by phase (SegmentSummary's timings). "other" is the rest:
-/// Ceres' post-processing, copying the solution out, and tearing the problem down.
+/// building the elimination ordering, Ceres' post-processing, copying the solution out, and
+/// tearing the problem down.
 struct Phases {
   static constexpr std::array<const char*, 9> kNames = {
       "build",           "seed",       "preprocess", "jacobian", "residual", "linear",
