@@ -39,7 +39,7 @@
 #include <vector>
 
 #include "traverse/core/memory.h"
-#include "traverse/estimators/pipeline.h"
+#include "traverse/pipeline/pipeline.h"
 #include "traverse/io/log_reader.h"
 #include "traverse/io/log_writer.h"
 #include "traverse/sim/simulator.h"
@@ -88,7 +88,7 @@ bool resetPeakRss() {
 
 struct Case {
   io::TraverseLog log;
-  est::Estimates est;
+  pipeline::Estimates est;
   std::unique_ptr<smoother::SmootherData> data;  // refers to log and est.ekf.trajectory
   smoother::SegmentSpec spec;
   double sim_seconds = 0.0, estimate_seconds = 0.0;
@@ -141,7 +141,7 @@ const Case& syntheticSegment(int nodes) {
   }  // the truth samples go here
   auto t1 = std::chrono::steady_clock::now();
   c->sim_seconds = std::chrono::duration<double>(t1 - t0).count();
-  c->est = est::estimate(c->log);  // segmentation, initial state, dead reckoning, EKF
+  c->est = pipeline::estimate(c->log);  // segmentation, initial state, dead reckoning, EKF
   c->estimate_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   c->data = std::make_unique<smoother::SmootherData>(c->log, c->est.ekf.trajectory, options(true));

@@ -3,12 +3,16 @@
 #include <Eigen/Eigenvalues>
 
 #include "support/jacobian_check.h"
-#include "traverse/estimators/pipeline.h"
+#include "traverse/pipeline/pipeline.h"
 #include "traverse/eval/metrics.h"
 #include "traverse/sim/simulator.h"
 
 namespace traverse::est {
 namespace {
+
+using pipeline::estimate;
+using pipeline::Estimates;
+using pipeline::PipelineConfig;
 
 std::filesystem::path datasets() {
   return std::filesystem::path(testing::sourceDir()) / "datasets";

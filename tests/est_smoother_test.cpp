@@ -11,7 +11,7 @@
 #include "support/jacobian_check.h"
 #include "traverse/core/error.h"
 #include "traverse/core/so3.h"
-#include "traverse/estimators/pipeline.h"
+#include "traverse/pipeline/pipeline.h"
 #include "traverse/eval/metrics.h"
 #include "traverse/sim/simulator.h"
 
@@ -33,11 +33,11 @@ sim::Simulation simulate(const std::string& scenario, std::vector<std::string> o
   return sim::simulate(sc, sim::roverDirectory(sc, datasets()), seed);
 }
 
-est::Estimates estimateSmoothed(const io::TraverseLog& log, const SmootherOptions& options = {}) {
-  est::PipelineConfig config;
+pipeline::Estimates estimateSmoothed(const io::TraverseLog& log, const SmootherOptions& options = {}) {
+  pipeline::PipelineConfig config;
   config.smooth = true;
   config.smoother = options;
-  return est::estimate(log, config);
+  return pipeline::estimate(log, config);
 }
 
 // Three stop-to-stop legs on straight-1m's undulating terrain (straight, left arc, straight),
@@ -51,7 +51,7 @@ const std::vector<std::string> kThreeLegs = {
 /// The three-leg log and its estimates, simulated and smoothed once per test program.
 struct ThreeLegRun {
   sim::Simulation sim;
-  est::Estimates est;
+  pipeline::Estimates est;
 };
 const ThreeLegRun& threeLegs() {
   static const ThreeLegRun run = [] {
@@ -111,7 +111,7 @@ TEST(Smoother, NoiseFreeLogSmoothsToTruth) {
                       "sensors.gyro.noise_rad_s=1e-6", "sensors.sun.noise=1e-6",
                       "sensors.accel.noise_mps2=1e-6", "sensors.joints.angle_noise_rad=0",
                       "sensors.joints.steering_noise_rad=0", "sensors.joints.wheel_quantum_rad=0"});
-  const est::Estimates e = estimateSmoothed(s.log);
+  const pipeline::Estimates e = estimateSmoothed(s.log);
   ASSERT_TRUE(e.smoothed.has_value());
   const SmootherResult& r = *e.smoothed;
   ASSERT_EQ(r.segments.size(), 1u);
@@ -141,7 +141,7 @@ TEST(Smoother, NoiseFreeLogSmoothsToTruth) {
 // accepts steps that lower the cost, so the solution's cost is never above the EKF's.
 TEST(Smoother, NeverWorseThanTheEkfSeed) {
   for (uint64_t seed = 1; seed <= 3; ++seed) {
-    const est::Estimates e = estimateSmoothed(simulate("straight-1m", {}, seed).log);
+    const pipeline::Estimates e = estimateSmoothed(simulate("straight-1m", {}, seed).log);
     ASSERT_TRUE(e.smoothed.has_value());
     ASSERT_FALSE(e.smoothed->segments.empty());
     for (const SegmentSummary& g : e.smoothed->segments) {
@@ -165,7 +165,7 @@ TEST(Smoother, RecoversAnInjectedBias) {
   for (uint64_t seed = 1; seed <= 3; ++seed) {
     const sim::Simulation s =
         simulate("straight-1m", {"sensors.gyro.bias_rad_s=[0,0,0.003]"}, seed);
-    const est::Estimates e = estimateSmoothed(s.log);
+    const pipeline::Estimates e = estimateSmoothed(s.log);
     ASSERT_TRUE(e.smoothed.has_value());
     ASSERT_EQ(e.smoothed->segments.size(), 1u);
     const SegmentSummary& g = e.smoothed->segments[0];
@@ -191,7 +191,7 @@ TEST(Smoother, RecoversAnInjectedBias) {
 TEST(Smoother, ResultsDoNotDependOnThreadCount) {
   const ThreeLegRun& run = threeLegs();
   const io::TraverseLog& log = run.sim.log;
-  const est::Estimates& e = run.est;
+  const pipeline::Estimates& e = run.est;
   SmootherOptions options;
   options.threads = 1;
   const SmootherResult one = smooth(log, e.segmentation, e.ekf.trajectory, options);
@@ -223,7 +223,7 @@ TEST(Smoother, ResultsDoNotDependOnThreadCount) {
 // no jump at the seams: the rover stands still through the rest windows.
 TEST(Smoother, SharedRestWindowsAgree) {
   const ThreeLegRun& run = threeLegs();
-  const est::Estimates& e = run.est;
+  const pipeline::Estimates& e = run.est;
   const SmootherResult& r = *e.smoothed;
   const auto& nodes = r.trajectory.nodes;
   const auto& ekf = e.ekf.trajectory.nodes;
@@ -278,7 +278,7 @@ TEST(Smoother, SharedRestWindowsAgree) {
 // position no longer does: the seed's positions are re-integrated from the process first.)
 TEST(Smoother, FallsBackToTheEkfWhenTheSolverFails) {
   const ThreeLegRun& run = threeLegs();
-  const est::Estimates& e = run.est;
+  const pipeline::Estimates& e = run.est;
   const est::Segment& leg2 = e.segmentation.segments[3];
   ASSERT_EQ(leg2.kind, est::Segment::Kind::kMotion);
   io::TraverseLog log = run.sim.log;
@@ -339,7 +339,7 @@ TEST(Smoother, StopsAtTheIterationLimitWithoutLosingGround) {
   SmootherOptions options;
   options.max_iterations = 1;
   options.function_tolerance = options.gradient_tolerance = options.parameter_tolerance = 1e-30;
-  const est::Estimates e = estimateSmoothed(s.log, options);
+  const pipeline::Estimates e = estimateSmoothed(s.log, options);
   ASSERT_TRUE(e.smoothed.has_value());
   for (const SegmentSummary& g : e.smoothed->segments) {
     EXPECT_TRUE(validStatus(g.status)) << g.status;
@@ -367,7 +367,7 @@ TEST(Smoother, RandomWalkBiasNeedsARandomWalkNoise) {
     EXPECT_NE(e.message().find("bias_random_walk_rad_s_per_sqrt_s"), std::string::npos) << e.what();
   }
   options.bias_model = SmootherOptions::BiasModel::kConstant;  // fine without a random walk
-  const est::Estimates e = estimateSmoothed(s.log, options);
+  const pipeline::Estimates e = estimateSmoothed(s.log, options);
   ASSERT_TRUE(e.smoothed.has_value());
   for (const SegmentSummary& g : e.smoothed->segments) EXPECT_NE(g.status, "fallback_ekf");
 }
@@ -377,7 +377,7 @@ TEST(Smoother, RandomWalkBiasNeedsARandomWalkNoise) {
 // window after it).
 TEST(Smoother, CovarianceIsPositiveAndGrowsInMotion) {
   const ThreeLegRun& run = threeLegs();
-  const est::Estimates& e = run.est;
+  const pipeline::Estimates& e = run.est;
   const auto& nodes = e.smoothed->trajectory.nodes;
   ASSERT_TRUE(e.smoothed->trajectory.has_covariance);
   for (size_t k = 0; k < nodes.size(); ++k) {

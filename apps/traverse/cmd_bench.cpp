@@ -29,9 +29,9 @@ struct BenchOptions {
 };
 
 eval::MetricsReport oneRun(const sim::Scenario& sc, const std::filesystem::path& rover_dir,
-                           uint64_t seed, const est::PipelineConfig& config) {
+                           uint64_t seed, const pipeline::PipelineConfig& config) {
   const sim::Simulation s = sim::simulate(sc, rover_dir, seed);
-  const est::Estimates e = est::estimate(s.log, config);
+  const pipeline::Estimates e = pipeline::estimate(s.log, config);
   std::vector<est::Trajectory> trajectories{e.dr, e.ekf.trajectory};
   if (e.smoothed) trajectories.push_back(e.smoothed->trajectory);
   return eval::evaluateAll(sc.name + "#" + std::to_string(seed), trajectories,
@@ -68,7 +68,7 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
     const std::filesystem::path data = datasetsDir();
     const sim::Scenario sc = sim::loadScenario(opt->scenario, data, opt->overrides);
     const std::filesystem::path rover_dir = sim::roverDirectory(sc, data);
-    est::PipelineConfig config = pipelineConfig(opt->pipeline);
+    pipeline::PipelineConfig config = pipelineConfig(opt->pipeline);
     config.smooth = !opt->no_smoother;
     // Runs are parallel already: one thread per run's segments unless asked otherwise.
     if (opt->pipeline.threads == 0) config.smoother.threads = 1;

@@ -64,8 +64,8 @@ void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
                "Skip the smoother's marginal covariances (σ columns then come from the EKF)");
 }
 
-est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
-  est::PipelineConfig c;
+pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
+  pipeline::PipelineConfig c;
   c.init.position_site = Vec3d(o.initial_position[0], o.initial_position[1], o.initial_position[2]);
   c.ekf.attitude = o.attitude_model == "gyro-measurement"
                        ? est::EkfOptions::AttitudeModel::kGyroMeasurement
@@ -102,14 +102,14 @@ est::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   return c;
 }
 
-est::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global, bool smooth) {
+pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global, bool smooth) {
   io::ReadReport report;
   const io::TraverseLog log = io::readLog(o.log_dir, io::ReadOptions{o.skip_bad_rows}, &report);
   for (const auto& [file, n] : report.skipped_rows)
     std::cerr << file << ": skipped " << n << " bad rows\n";
-  est::PipelineConfig config = pipelineConfig(o);
+  pipeline::PipelineConfig config = pipelineConfig(o);
   config.smooth = smooth;
-  est::Estimates e = est::estimate(log, config);
+  pipeline::Estimates e = pipeline::estimate(log, config);
   std::filesystem::create_directories(o.out_dir);
   est::writeTrajectory(o.out_dir, e.dr);
   est::writeTrajectory(o.out_dir, e.ekf.trajectory);

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "commands.h"
-#include "traverse/estimators/pipeline.h"
+#include "traverse/pipeline/pipeline.h"
 
 namespace traverse::app {
 
@@ -30,9 +30,9 @@ struct PipelineOptions {
 
 void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);
 void addSmootherOptions(CLI::App& cmd, PipelineOptions& options);
-est::PipelineConfig pipelineConfig(const PipelineOptions& options);
+pipeline::PipelineConfig pipelineConfig(const PipelineOptions& options);
 /// Reads the log, estimates, writes OUTDIR; returns what it estimated.
-est::Estimates runPipeline(const PipelineOptions& options, const GlobalOptions& global,
+pipeline::Estimates runPipeline(const PipelineOptions& options, const GlobalOptions& global,
                            bool smooth);
 
 }  // namespace traverse::app

@@ -274,52 +274,57 @@ void Ekf::absorb(const EkfVector& dx) {
   P_.block<kEkfStates, 3>(0, I::kTheta) = P_.block<kEkfStates, 3>(0, I::kTheta) * G.transpose();
 }
 
-Eigen::Matrix4d slipCovariance(const io::SlipNoiseConfig& sn, const JointSample& js, int i,
-                               const Vec3d& v_body, const Vec3d& w_body,
-                               const Eigen::Matrix<double, 4, 6>& J_vw) {
-  Eigen::Matrix4d R =
-      Vec4d(sn.longitudinal_mps * sn.longitudinal_mps, sn.lateral_mps * sn.lateral_mps,
-            sn.normal_mps * sn.normal_mps, sn.spin_rad_s * sn.spin_rad_s)
-          .asDiagonal();
-  // Joint noise enters the constraint too: the joint twist J q̇ through ∂t/∂[v; ω] (t is linear
-  // in the twist), and a steering-angle error turns the wheel's heading, moving the contact
-  // point's velocity into the transverse row by |v_wheel| δλ.
-  R.noalias() += J_vw * js.joint_twist_covariance[i] * J_vw.transpose();
-  if (js.steering_variance[i] > 0) {
-    const Posed& g = js.T_body_wheel[i];
-    const Twistd& jt = js.joint_twist[i];
-    const Vec3d u = g.R.transpose() * (v_body + jt.head<3>() + (w_body + jt.tail<3>()).cross(g.p));
-    R(1, 1) += js.steering_variance[i] * (u.x() * u.x() + u.y() * u.y());
+Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample& js, int i,
+                         const Twistd* commanded, const Eigen::Matrix<double, 7, 1>& s,
+                         Eigen::Matrix<double, 4, 7>* H, Eigen::Matrix<double, 4, 7>* dt_ds) {
+  const double radius = geometry.wheels[i].radius;
+  const Twistd& jt = js.joint_twist[i];
+  Eigen::Matrix<double, 4, 7> J;
+  const Vec4d t = rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, jt, s.head<3>(),
+                                                    s.segment<3>(3), s[6], &J);
+  const Twistd nominal_twist =
+      commanded ? *commanded : rover::nominalBodyTwist(geometry, s[0], s[5]);
+  const Vec4d r = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, jt) - t;
+  *H = J;
+  if (dt_ds) *dt_ds = J;
+  if (!commanded) {
+    // The nominal slip follows the estimate: r = nominal(v_x, ω_z) − t(s), so H = ∂t/∂s −
+    // ∂nominal/∂s. nominalSlip is the constraint at ξ = 0 (rows 1 and 3 kept) of the twist
+    // (v_x, −ω_z x_c, 0, 0, 0, ω_z), linear in it: its Jacobian is the ξ = 0 constraint's.
+    Eigen::Matrix<double, 4, 7> J0;
+    rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, jt, nominal_twist.head<3>(),
+                                      nominal_twist.tail<3>(), 0.0, &J0);
+    for (const int row : {1, 3}) {
+      (*H)(row, 0) -= J0(row, 0);
+      (*H)(row, 5) -= J0(row, 5) - geometry.turn_centre_x * J0(row, 1);
+    }
   }
-  return R;
+  return r;
 }
 
 void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
   const bool accel_driven =
       options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
   const auto v_now = [&] { return accel_driven ? v_p_ : velocity<double>(v_p_, in); };
-  // Nominal slip (K §2.3.4) from the commanded motion, or from the estimate without cmd.csv.
-  const Twistd nominal_twist =
-      has_cmd_ ? rover::nominalBodyTwist(geometry_, in.v_cmd.x(), in.w_cmd.z())
-               : rover::nominalBodyTwist(geometry_, v_now().x(), omega<double>(w_p_, b_, in).z());
+  // Nominal slip (K §2.3.4) from the commanded motion, or from the estimate without cmd.csv
+  // (then it is part of the measurement function and is differentiated with it).
+  const Twistd cmd_twist = rover::nominalBodyTwist(geometry_, in.v_cmd.x(), in.w_cmd.z());
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
   for (int i = 0; i < rover::kNumWheels; ++i) {
-    const double radius = geometry_.wheels[i].radius;
-    const Twistd& jt = js.joint_twist[i];
     // Re-linearise at the state the previous wheel's update left (sequential processing).
     Eigen::Matrix<double, 7, 1> s;
     s << v_now(), omega<double>(w_p_, b_, in), xi_[i];
     Eigen::Matrix<double, 4, 7> J;
-    const Vec4d t = rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, jt, s.head<3>(),
-                                                      s.segment<3>(3), s[6], &J);
-    const Eigen::Matrix4d Ri =
-        slipCovariance(config_.slip_noise, js, i, s.head<3>(), s.segment<3>(3), J.leftCols<6>());
+    Eigen::Matrix<double, 4, 7> Jt;  // ∂t/∂s: the noise is the constraint's (nominal: exact)
+    const Vec4d r =
+        slipUpdateResidual(geometry_, js, i, has_cmd_ ? &cmd_twist : nullptr, s, &J, &Jt);
+    const Eigen::Matrix4d Ri = rover::slipCovariance(config_.slip_noise, js, i, s.head<3>(),
+                                                     s.segment<3>(3), Jt.leftCols<6>());
     Eigen::Matrix<double, 4, kEkfStates> H = Eigen::Matrix<double, 4, kEkfStates>::Zero();
     H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
     H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
     if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * S_;
     H.col(I::kXi + i) = J.col(6);
-    const Vec4d r = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, jt) - t;
     ++stats_.slip_updates;
     if (!update<4>(r, H, Ri, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
   }

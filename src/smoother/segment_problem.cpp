@@ -16,7 +16,7 @@
 #include <ceres/ceres.h>
 
 #include "traverse/core/error.h"
-#include "traverse/estimators/chain_marginals.h"
+#include "traverse/smoother/chain_marginals.h"
 #include "traverse/rover/nominal_slip.h"
 #include "traverse/smoother/block_evaluation.h"
 #include "traverse/smoother/body_quaternion_manifold.h"
@@ -181,7 +181,7 @@ class SegmentBuilder {
   const est::TrajectoryNode& seedNode(size_t k) const {
     return d_.seed.nodes[d_.nodes[spec_.first + k]];
   }
-  const est::JointSample& joint(size_t k) const { return d_.joints[d_.nodes[spec_.first + k]]; }
+  const rover::JointSample& joint(size_t k) const { return d_.joints[d_.nodes[spec_.first + k]]; }
   double time(size_t k) const { return joint(k).t; }
   bool randomWalkBias() const { return o_.bias_model == SmootherOptions::BiasModel::kRandomWalk; }
   double* bias(size_t k) { return randomWalkBias() ? nodes_[k].b : segment_bias_; }
@@ -225,7 +225,7 @@ class SegmentBuilder {
   /// The manifold a parameter block was added with (nullptr: Euclidean).
   const ceres::Manifold* manifoldOf(const double* block) const {
     if (block == segment_bias_) return bias_manifold_.get();
-    const est::ChainPlace p = place(block);
+    const smoother::ChainPlace p = place(block);
     if (p.col == 0) return &quaternion_manifold_;
     if (p.col == 18) return bias_manifold_.get();
     return nullptr;
@@ -235,8 +235,8 @@ class SegmentBuilder {
   /// would first build a whole evaluation program (offsets, scratch, a state vector) for one
   /// number.
   double cost();
-  /// Column place of a parameter block in the chain information (est::ChainPlace).
-  est::ChainPlace place(const double* block) const;
+  /// Column place of a parameter block in the chain information (smoother::ChainPlace).
+  smoother::ChainPlace place(const double* block) const;
   void seedStates();
   void markRest();
   void makeSeedConsistent();
@@ -299,9 +299,9 @@ double SegmentBuilder::cost() {
   return total;
 }
 
-est::ChainPlace SegmentBuilder::place(const double* block) const {
+smoother::ChainPlace SegmentBuilder::place(const double* block) const {
   const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
-  if (block == segment_bias_) return {est::ChainPlace::kGlobal, 0, bias_dim};
+  if (block == segment_bias_) return {smoother::ChainPlace::kGlobal, 0, bias_dim};
   // Node k's blocks live in nodes_[k]; find k from the address, then the member.
   const auto offset =
       reinterpret_cast<const char*>(block) - reinterpret_cast<const char*>(nodes_.data());
@@ -488,7 +488,7 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
 }
 
 void SegmentBuilder::addSlipResiduals(size_t k) {
-  const est::JointSample& js = joint(k);
+  const rover::JointSample& js = joint(k);
   NodeBlocks& b = nodes_[k];
   const Eigen::Index row = static_cast<Eigen::Index>(spec_.first + k);
   const est::TrajectoryNode& s = seedNode(k);
@@ -501,7 +501,7 @@ void SegmentBuilder::addSlipResiduals(size_t k) {
     rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], s.v_body,
                                       s.w_body, s.xi[static_cast<size_t>(i)], &J);
     const Eigen::Matrix4d R =
-        est::slipCovariance(cfg_.slip_noise, js, i, s.v_body, s.w_body, J.leftCols<6>());
+        rover::slipCovariance(cfg_.slip_noise, js, i, s.v_body, s.w_body, J.leftCols<6>());
     const Vec4d nominal =
         rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, js.joint_twist[i]);
     if (slip_data_.size() == slip_data_.capacity())
@@ -615,9 +615,9 @@ bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
   const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
   const int node_dim = 18 + (randomWalkBias() ? bias_dim : 0);
   const int global_dim = randomWalkBias() ? 0 : bias_dim;
-  est::ChainInformation H = est::makeChainInformation(static_cast<int>(n_), node_dim, global_dim);
+  smoother::ChainInformation H = smoother::makeChainInformation(static_cast<int>(n_), node_dim, global_dim);
   std::vector<double> jacobian;
-  std::array<est::ChainPlace, kMaxBlocksPerResidual> places;
+  std::array<smoother::ChainPlace, kMaxBlocksPerResidual> places;
   std::array<double*, kMaxBlocksPerResidual> jacobians{};
   for (const ResidualEntry& e : residuals_) {
     int cols = 0;
@@ -631,10 +631,10 @@ bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
     if (!evaluator_.evaluate(*e.f, e.loss, e.parameterBlocks(), e.blockManifolds(), nullptr,
                              nullptr, jacobians.data()))
       return false;
-    est::addChainResidual(H, std::span(places.data(), static_cast<size_t>(e.num_blocks)),
+    smoother::addChainResidual(H, std::span(places.data(), static_cast<size_t>(e.num_blocks)),
                           jacobians.data(), e.num_rows);
   }
-  const est::ChainMarginals m = est::chainMarginals(H);
+  const smoother::ChainMarginals m = smoother::chainMarginals(H);
   if (!m.ok) return false;
   // Bias axes in the tangent: all three, or z only (heading-only gyro, x and y held).
   const std::vector<int> axes = bias_manifold_ ? std::vector<int>{2} : std::vector<int>{0, 1, 2};

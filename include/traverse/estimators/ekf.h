@@ -18,6 +18,7 @@
 
 #include "traverse/estimators/initialization.h"
 #include "traverse/estimators/trajectory.h"
+#include "traverse/rover/joint_sample.h"
 #include "traverse/rover/kinematics.h"
 
 namespace traverse::est {
@@ -68,16 +69,7 @@ struct EkfInputs {
   bool has_accel = false;
 };
 
-/// Joint data at a joint sample: wheel frames g_{s f_i} and the wheels' joint twists J q̇ (K-17).
-struct JointSample {
-  double t = 0.0;
-  std::array<Posed, rover::kNumWheels> T_body_wheel;
-  std::array<Twistd, rover::kNumWheels> joint_twist;
-  /// Covariance of each joint twist J q̇ from the joint-rate noise (J Σ_q̇ Jᵀ, 6×6), and the
-  /// steering-angle variance of the wheel's chain (0 for unsteered wheels).
-  std::array<Mat6d, rover::kNumWheels> joint_twist_covariance;
-  std::array<double, rover::kNumWheels> steering_variance{};
-};
+using rover::JointSample;
 
 class Ekf {
  public:
@@ -153,12 +145,14 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
 /// differencing, K §3).
 std::vector<JointSample> jointSamples(const io::TraverseLog& log);
 
-/// Covariance of wheel i's four slip rows (K-17): rover.yaml's slip noise, plus the joint-rate
-/// noise carried through ∂t/∂[v; ω] = J_vw, plus the steering-angle noise (transverse row). The
-/// EKF and the smoother both whiten the slip constraint with it.
-Eigen::Matrix4d slipCovariance(const io::SlipNoiseConfig& noise, const JointSample& js, int wheel,
-                               const Vec3d& v_body, const Vec3d& w_body,
-                               const Eigen::Matrix<double, 4, 6>& J_vw);
+/// Residual r = nominal − t of wheel i's four slip rows (K-17, K §2.3.4) at s = (v, ω, ξ_i) and
+/// H = −∂r/∂s, the measurement Jacobian of the EKF's slip update. The nominal slip comes from
+/// the commanded twist when there is one (`commanded`), otherwise from the state itself
+/// (v_x, ω_z), and is then differentiated with the constraint. `dt_ds` (optional): ∂t/∂s of
+/// the constraint alone, which carries the joint noise (rover::slipCovariance).
+Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample& js, int wheel,
+                         const Twistd* commanded, const Eigen::Matrix<double, 7, 1>& s,
+                         Eigen::Matrix<double, 4, 7>* H, Eigen::Matrix<double, 4, 7>* dt_ds = nullptr);
 
 /// χ² quantile for `dof` degrees of freedom (regularized incomplete gamma), for gating.
 double chiSquareQuantile(double probability, int dof);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "traverse/core/types.h"
+#include "traverse/rover/joint_sample.h"
 
 namespace traverse::io {
 
@@ -44,13 +45,8 @@ struct SunConfig {
   Vec3d directionAt(double t) const;
 };
 
-/// Slip-constraint noise per component (K-17's n_i), 1σ per joint sample.
-struct SlipNoiseConfig {
-  double longitudinal_mps = 0.004;
-  double lateral_mps = 0.004;
-  double normal_mps = 0.004;
-  double spin_rad_s = 0.02;
-};
+/// Slip-constraint noise per component (K-17's n_i): defined by the rover layer.
+using SlipNoiseConfig = rover::SlipNoise;
 
 /// Process-model parameters (K-1, K-2, K-8, K-9).
 struct ProcessConfig {

@@ -37,7 +37,7 @@
 #include <ceres/crs_matrix.h>
 #include <Eigen/Core>
 
-namespace traverse::est {
+namespace traverse::smoother {
 
 /// Information matrix H = JᵀJ of a chain problem in block form (upper triangle of the arrow).
 struct ChainInformation {
@@ -92,4 +92,4 @@ struct ChainMarginals {
 /// std::invalid_argument if the blocks' sizes are inconsistent.
 ChainMarginals chainMarginals(const ChainInformation& H);
 
-}  // namespace traverse::est
+}  // namespace traverse::smoother

@@ -1,4 +1,4 @@
-#include "traverse/estimators/chain_marginals.h"
+#include "traverse/smoother/chain_marginals.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -8,7 +8,7 @@
 
 #include <Eigen/Cholesky>
 
-namespace traverse::est {
+namespace traverse::smoother {
 namespace {
 
 using Eigen::MatrixXd;
@@ -261,4 +261,4 @@ ChainMarginals chainMarginals(const ChainInformation& H) {
   return out;
 }
 
-}  // namespace traverse::est
+}  // namespace traverse::smoother

@@ -1,8 +1,12 @@
-#include "traverse/estimators/pipeline.h"
+#include "traverse/pipeline/pipeline.h"
 
 #include <algorithm>
 
-namespace traverse::est {
+namespace traverse::pipeline {
+
+using est::RestWindow;
+using est::Segment;
+using est::TrajectoryNode;
 
 std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& tr) {
   std::vector<SegmentRow> rows;
@@ -32,10 +36,10 @@ std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& t
 
 Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config) {
   Estimates e;
-  e.segmentation = segment(log, config.segmentation);
-  e.init = initialState(log, e.segmentation, config.init);
-  e.dr = deadReckoning(log, e.segmentation, e.init, config.dead_reckoning);
-  e.ekf = runEkf(log, e.segmentation, e.init, config.ekf);
+  e.segmentation = est::segment(log, config.segmentation);
+  e.init = est::initialState(log, e.segmentation, config.init);
+  e.dr = est::deadReckoning(log, e.segmentation, e.init, config.dead_reckoning);
+  e.ekf = est::runEkf(log, e.segmentation, e.init, config.ekf);
   e.segments = segmentRows(e.segmentation, e.ekf.trajectory);
   if (config.smooth) {
     e.smoothed = smoother::smooth(log, e.segmentation, e.ekf.trajectory, config.smoother);
@@ -44,4 +48,4 @@ Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config) {
   return e;
 }
 
-}  // namespace traverse::est
+}  // namespace traverse::pipeline

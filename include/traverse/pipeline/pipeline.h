@@ -1,4 +1,4 @@
-// The estimation pipeline on one log: segmentation → initial state → dead reckoning and the
+// The estimation pipeline on one log (the layer above estimators and smoother): segmentation → initial state → dead reckoning and the
 // forward EKF → the per-segment batch smoother (when asked), and the rows of segments.csv.
 #pragma once
 
@@ -10,7 +10,17 @@
 #include "traverse/estimators/segments_output.h"
 #include "traverse/smoother/smoother.h"
 
-namespace traverse::est {
+namespace traverse::pipeline {
+
+using est::DeadReckoningOptions;
+using est::EkfOptions;
+using est::EkfResult;
+using est::InitialState;
+using est::InitOptions;
+using est::Segmentation;
+using est::SegmentationOptions;
+using est::SegmentRow;
+using est::Trajectory;
 
 struct PipelineConfig {
   SegmentationOptions segmentation;
@@ -37,4 +47,4 @@ Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {}
 /// motion row the trajectory's bias at the segment's end.
 std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& trajectory);
 
-}  // namespace traverse::est
+}  // namespace traverse::pipeline

@@ -8,9 +8,9 @@
 #include <gtest/gtest.h>
 #include <Eigen/Cholesky>
 
-#include "traverse/estimators/chain_marginals.h"
+#include "traverse/smoother/chain_marginals.h"
 
-namespace traverse::est {
+namespace traverse::smoother {
 namespace {
 
 using Eigen::MatrixXd;
@@ -452,4 +452,4 @@ TEST(Marginals, MonteCarloSampleCovarianceMatches) {
 }
 
 }  // namespace
-}  // namespace traverse::est
+}  // namespace traverse::smoother

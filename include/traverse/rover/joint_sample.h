@@ -1,0 +1,40 @@
+// The joint data of one joint sample as the slip constraint (K-17) sees it, and the covariance
+// of a wheel's four slip rows. Shared by the EKF and the smoother; built from a log by
+// est::jointSamples.
+#pragma once
+
+#include <array>
+
+#include "traverse/core/se3.h"
+#include "traverse/core/types.h"
+#include "traverse/rover/kinematics.h"
+
+namespace traverse::rover {
+
+/// Slip-constraint noise per component (K-17's n_i), 1σ per joint sample (rover.yaml slip_noise).
+struct SlipNoise {
+  double longitudinal_mps = 0.004;
+  double lateral_mps = 0.004;
+  double normal_mps = 0.004;
+  double spin_rad_s = 0.02;
+};
+
+/// Joint data at a joint sample: wheel frames g_{s f_i} and the wheels' joint twists J q̇ (K-17).
+struct JointSample {
+  double t = 0.0;
+  std::array<Posed, kNumWheels> T_body_wheel;
+  std::array<Twistd, kNumWheels> joint_twist;
+  /// Covariance of each joint twist J q̇ from the joint-rate noise (J Σ_q̇ Jᵀ, 6×6), and the
+  /// steering-angle variance of the wheel's chain (0 for unsteered wheels).
+  std::array<Mat6d, kNumWheels> joint_twist_covariance;
+  std::array<double, kNumWheels> steering_variance{};
+};
+
+/// Covariance of wheel i's four slip rows (K-17): the slip noise, plus the joint-rate noise
+/// carried through ∂t/∂[v; ω] = J_vw, plus the steering-angle noise (transverse row). The EKF and
+/// the smoother both whiten the slip constraint with it.
+Eigen::Matrix4d slipCovariance(const SlipNoise& noise, const JointSample& js, int wheel,
+                               const Vec3d& v_body, const Vec3d& w_body,
+                               const Eigen::Matrix<double, 4, 6>& J_vw);
+
+}  // namespace traverse::rover
