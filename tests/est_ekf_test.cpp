@@ -46,7 +46,10 @@ TEST(EstEkf, NoiseFreeFlatTraverseIsReproduced) {
   EXPECT_LT(*ekf.get("yaw_rmse_deg"), 0.01);
   EXPECT_LT(*dr.get("final_position_error_m"), 1e-3);
   EXPECT_EQ(e.ekf.stats.slip_rejected, 0);
-  EXPECT_EQ(e.ekf.stats.sun_rejected, 0);
+  // The log declares zero sun noise, so the χ² gate is a knife edge: allow one reading of 161
+  // (since rest windows are trimmed to the true stop, 0.25 s more of each ramp's creeping tail
+  // is filtered as motion, where a 1e-9 model error is many "σ").
+  EXPECT_LE(e.ekf.stats.sun_rejected, 1);
 }
 
 // Sequential processing: every stream's samples are used, and the rest updates happen.

@@ -93,5 +93,61 @@ TEST(EstSegmentation, RestMeasurementsAreConsistentWithTruth) {
   EXPECT_LE(grav_out, 1) << "of " << f.seg.rests.size();
 }
 
+// Slow starts and stops: legs whose ramps are as long as the leg (no cruise), so each leg
+// spends seconds below the transient detector's thresholds at both ends. Rest windows must not
+// swallow that motion: the rotation the truth makes inside rest windows stays at the level the
+// gyro cannot see, and each window's bias is within 3σ of the true bias.
+sim::Scenario slowOnset(bool three_axis) {
+  const auto data = std::filesystem::path(testing::sourceDir()) / "datasets";
+  sim::Scenario sc = sim::loadScenario("multi-stop", data);
+  const sim::Leg rest = sc.legs[0];
+  sc.legs.clear();
+  for (int i = 0; i < 4; ++i) {
+    sc.legs.push_back(rest);
+    sim::Leg leg;
+    if (i % 2 == 0) {
+      leg.kind = sim::Leg::Kind::kTurnInPlace;
+      leg.angle_rad = (i == 0 ? 1 : -1) * 0.35, leg.rate_rad_s = 0.06, leg.ramp_s = 8;
+    } else {
+      leg.kind = sim::Leg::Kind::kStraight;
+      leg.distance_m = 0.6, leg.speed_mps = 0.06, leg.ramp_s = 12;
+    }
+    sc.legs.push_back(leg);
+  }
+  sc.legs.push_back(rest);
+  if (three_axis) sc.sensors.gyro_three_axis = true;
+  return sc;
+}
+
+TEST(EstSegmentation, SlowStartsAndStopsAreNotSwallowedByRests) {
+  const auto rover = std::filesystem::path(testing::sourceDir()) / "datasets" / "rovers" / "rocky7";
+  for (const uint64_t seed : {1, 2, 3}) {
+    const sim::Simulation sim = sim::simulate(slowOnset(false), rover, seed);
+    const Segmentation seg = segment(sim.log);
+    const double sg = sim.log.config.gyro.noise_rad_s;
+    for (const RestWindow& w : seg.rests) {
+      // The true rotation inside the window, against what the gyro can resolve over it.
+      double rot = 0, travel = 0;
+      long n = 0;
+      for (Eigen::Index k = 0; k < seg.gyro_t.size(); ++k) {
+        const double t = seg.gyro_t[k];
+        if (t < w.t_start || t > w.t_end) continue;
+        const sim::TruthSample s = sim::interpolateTruth(sim.truth, t);
+        const double dt = k > 0 ? t - seg.gyro_t[k - 1] : 0.0;
+        rot += std::abs(s.w_body.z()) * dt, travel += s.v_body.norm() * dt, ++n;
+      }
+      const double dt = (w.t_end - w.t_start) / std::max<long>(n - 1, 1);
+      // 4.5σ of the integrated gyro noise over the window (trim threshold), with margin.
+      EXPECT_LE(rot, 6.0 * sg * dt * std::sqrt(static_cast<double>(n)))
+          << "seed " << seed << " window " << w.t_start << "–" << w.t_end;
+      EXPECT_LE(travel, 0.002) << "seed " << seed << " window " << w.t_start << "–" << w.t_end;
+      const sim::TruthSample mid = sim::interpolateTruth(sim.truth, 0.5 * (w.t_start + w.t_end));
+      EXPECT_LE(std::abs(w.bias.z() - mid.gyro_bias.z()), 3.5 * w.bias_sigma.z())
+          << "seed " << seed << " window " << w.t_start << "–" << w.t_end;
+    }
+    EXPECT_EQ(seg.rests.size(), 5u) << "seed " << seed;
+  }
+}
+
 }  // namespace
 }  // namespace traverse::est

@@ -215,6 +215,88 @@ void snapMotionEnds(const io::Stream& g, const std::vector<unsigned char>& wheel
   }
 }
 
+/// Trims each rest run (gyro sample indices, rest = 1) to the part whose integrated rotation and
+/// wheel travel are consistent with rest at the declared noise. The reference is the run's core
+/// (its middle half): its mean gyro reading b̂ is the bias, its mean wheel angles the wheels'
+/// rest position. From the core outward, U(q) = Σ_{k=q}^{core−1} (ω_k − b̂) Δt is a random walk
+/// at rest (variance m σ_g² Δt² + m² Δt² σ_b̂², m samples), and V(q) = mean_i r_i (ψ_i(q) −
+/// ψ̄_i,core) is white (variance r̄² σ_ψ² (1 + 1/n_core) / n_wheels). Walking outward, the first
+/// sample at which either statistic (any gyro axis) exceeds `rest_trim_sigma` standard
+/// deviations and everything beyond it become motion: a slow start or stop whose rate stays
+/// under the transient detector's threshold still turns a measurable angle or rolls a
+/// measurable distance. Repeated (at most three times) with the core of the shortened run.
+/// Edges at the start or end of the log are not trimmed (nothing moves before or after them).
+void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
+                  std::vector<unsigned char>& rest) {
+  if (o.rest_trim_sigma <= 0) return;
+  const io::Stream& g = log.gyro;
+  const io::Stream& j = log.joints;
+  const auto n = static_cast<Eigen::Index>(rest.size());
+  // Declared noise, floored at a resolution no real sensor beats (a noise-free simulated log
+  // declares 0 and would turn rounding into motion).
+  constexpr double kMinNoise = 1e-5;  // rad/s per gyro sample, rad per wheel angle
+  const double sg2 = std::pow(std::max(log.config.gyro.noise_rad_s, kMinNoise), 2);
+  const double thr2 = o.rest_trim_sigma * o.rest_trim_sigma;
+  double radius = 0;
+  for (int i = 0; i < rover::kNumWheels; ++i) radius += log.geometry.wheels[i].radius;
+  radius /= rover::kNumWheels;
+  const double sw2 = std::pow(std::max(log.config.joints.wheel_noise_rad, kMinNoise), 2) * radius *
+                     radius / rover::kNumWheels;
+  // Mean rolled distance of the wheels at joint sample m.
+  auto travel = [&](Eigen::Index m) {
+    double d = 0;
+    for (int i = 0; i < rover::kNumWheels; ++i)
+      d += log.geometry.wheels[i].radius * j.values(m, rover::kPsi1 + i);
+    return d / rover::kNumWheels;
+  };
+  for (Eigen::Index k = 0; k < n;) {
+    if (!rest[static_cast<size_t>(k)]) {
+      ++k;
+      continue;
+    }
+    Eigen::Index a = k, b = k;
+    while (b + 1 < n && rest[static_cast<size_t>(b + 1)]) ++b;
+    const Eigen::Index a0 = a, b0 = b;
+    const bool trim_start = a > 0, trim_end = b + 1 < n;
+    for (int iter = 0; iter < 3 && (trim_start || trim_end); ++iter) {
+      const Eigen::Index len = b - a + 1;
+      if (len < 8) break;
+      const Eigen::Index c0 = a + len / 4, c1 = b - len / 4;  // the core
+      const double nc = static_cast<double>(c1 - c0 + 1);
+      const Eigen::RowVectorXd bias = g.values.middleRows(c0, c1 - c0 + 1).colwise().mean();
+      // Wheels: the core's mean rolled distance.
+      const Eigen::Index j0 = nearest(j.t, g.t[c0]), j1 = nearest(j.t, g.t[c1]);
+      double ref = 0;
+      for (Eigen::Index m = j0; m <= j1; ++m) ref += travel(m);
+      ref /= static_cast<double>(j1 - j0 + 1);
+      const double vw = sw2 * (1.0 + 1.0 / static_cast<double>(j1 - j0 + 1));
+      // Outward from the core; returns the innermost index (towards the edge) still consistent.
+      auto scan = [&](Eigen::Index from, Eigen::Index to, int step) {
+        Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(g.values.cols());
+        Eigen::Index keep = to;  // edge index the run keeps
+        double m = 0;
+        for (Eigen::Index q = from; q != to - step; q -= step) {
+          sum += g.values.row(q) - bias, m += 1;
+          const double var = m * sg2 + m * m * sg2 / nc;
+          const double d = travel(nearest(j.t, g.t[q])) - ref;
+          if (sum.cwiseAbs2().maxCoeff() > thr2 * var || d * d > thr2 * vw) {
+            keep = q + step;
+            break;
+          }
+        }
+        return keep;
+      };
+      const Eigen::Index na = trim_start ? scan(c0 - 1, a, 1) : a;
+      const Eigen::Index nb = trim_end ? scan(c1 + 1, b, -1) : b;
+      if (na == a && nb == b) break;
+      a = na, b = nb;
+    }
+    for (Eigen::Index m = a0; m < a; ++m) rest[static_cast<size_t>(m)] = 0;
+    for (Eigen::Index m = b + 1; m <= b0; ++m) rest[static_cast<size_t>(m)] = 0;
+    k = b0 + 1;
+  }
+}
+
 Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
   Segmentation seg;
   const io::Stream& g = log.gyro;
@@ -231,6 +313,7 @@ Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
   }
   seg.gyro_rest = hysteresis(active, o);
   snapMotionEnds(g, wheels, o, seg.gyro_rest);
+  trimRestRuns(log, o, seg.gyro_rest);
   // Runs of equal mode → segments; short rests are merged into the motion around them.
   const auto n = static_cast<size_t>(g.size());
   for (size_t k = 0; k < n;) {

@@ -26,6 +26,10 @@ struct SegmentationOptions {
   double wheel_speed_threshold_mps = 0.002;
   double min_rest_s = 2.0;      ///< shorter rests are merged into the motion around them
   double edge_margin_s = 0.25;  ///< trimmed from each end of a rest window for its measurements
+  /// A rest window is cut back from each edge that borders motion until its integrated rotation
+  /// (bias-corrected gyro) and wheel travel, counted from the window's core outward, stay within
+  /// this many σ of the declared gyro and wheel noise (0: off). See trimRestRuns.
+  double rest_trim_sigma = 4.5;
 };
 
 /// What one rest window measures.
