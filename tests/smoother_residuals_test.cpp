@@ -912,5 +912,21 @@ TEST(SmootherResidualMarkovProcess, WhitensASimulatedProcess) {
   EXPECT_NEAR(lag / samples, 0.0, 0.06);
 }
 
+// A covariance the data make singular (a zero noise in rover.yaml) is a NumericalError, which
+// solveSegment turns into a fallback; it is not a std::logic_error (a bug, which surfaces).
+TEST(SmootherWhitening, SingularCovarianceIsANumericalError) {
+  const Eigen::Matrix2d zero = Eigen::Matrix2d::Zero();
+  EXPECT_THROW(sqrtInformation<2>(zero, "gravity"), NumericalError);
+  try {
+    sqrtInformation<2>(zero, "gravity");
+  } catch (const std::logic_error&) {
+    ADD_FAILURE() << "a singular covariance must not be a logic_error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("gravity"), std::string::npos);
+  }
+  const Eigen::Matrix2d cov = Vec2d(4.0, 0.25).asDiagonal();  // hand-checked: diag(1/2, 2)
+  EXPECT_TRUE(sqrtInformation<2>(cov, "x").isApprox(Vec2d(0.5, 2.0).asDiagonal().toDenseMatrix()));
+}
+
 }  // namespace
 }  // namespace traverse::smoother

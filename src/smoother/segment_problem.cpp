@@ -788,9 +788,10 @@ SegmentSolution solveSegment(const SmootherData& data, const SegmentSpec& spec,
   try {
     SegmentBuilder builder(data, spec, options);
     return builder.solve();
-  } catch (const std::exception& e) {
-    // A segment that cannot even be set up (e.g. a zero noise in rover.yaml makes a weight
-    // infinite) keeps the EKF's states; the rest of the log goes on.
+  } catch (const std::runtime_error& e) {
+    // A segment that cannot even be set up (bad input, or numbers the data make impossible: a
+    // zero noise in rover.yaml makes a weight infinite) keeps the EKF's states; the rest of the
+    // log goes on. A std::logic_error is a bug and surfaces.
     SegmentSolution out;
     for (size_t k = spec.first; k <= spec.last; ++k)
       out.nodes.push_back(data.seed.nodes[data.nodes[k]]);

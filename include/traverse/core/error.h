@@ -28,4 +28,12 @@ class InputError : public std::runtime_error {
   std::string message_;
 };
 
+/// A computation the data made impossible (a covariance that is not positive definite, a
+/// weight that would be infinite): the caller may fall back, unlike a std::logic_error, which is
+/// a bug and must surface.
+class NumericalError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 }  // namespace traverse

@@ -8,6 +8,8 @@
 
 #include <Eigen/Cholesky>
 
+#include "traverse/core/error.h"
+
 namespace traverse::smoother {
 
 /// L⁻¹ with Σ = L Lᵀ (lower-triangular Cholesky). Throws if Σ is not positive definite.
@@ -16,7 +18,7 @@ Eigen::Matrix<double, N, N> sqrtInformation(const Eigen::Matrix<double, N, N>& c
                                             const char* what) {
   const Eigen::LLT<Eigen::Matrix<double, N, N>> llt(covariance);
   if (llt.info() != Eigen::Success)
-    throw std::invalid_argument(std::string(what) + ": covariance is not positive definite");
+    throw NumericalError(std::string(what) + ": covariance is not positive definite");
   return llt.matrixL().solve(Eigen::Matrix<double, N, N>::Identity());
 }
 
