@@ -228,8 +228,8 @@ TEST(SimScenarios, BundledLogIsReproducible) {
 }
 
 TEST(SimScenarios, EveryBundledScenarioLoads) {
-  for (const char* name :
-       {"straight-1m", "turn-in-place-360", "obstacle", "planar-18m", "multi-stop"}) {
+  for (const char* name : {"straight-1m", "turn-in-place-360", "obstacle", "planar-18m",
+                           "multi-stop", "slow-onset"}) {
     const Scenario sc = loadScenario(name, datasets());
     EXPECT_EQ(sc.name, name);
     EXPECT_FALSE(sc.legs.empty());
@@ -261,6 +261,150 @@ TEST(SimScenarios, OverridesAndErrors) {
   EXPECT_THROW(loadScenario("straight-1m", datasets(), {"terrain.typo=1"}), InputError);
   EXPECT_THROW(loadScenario("straight-1m", datasets(), {"path.9.speed_mps=1"}), InputError);
   EXPECT_THROW(loadScenario("no-such-scenario", datasets()), InputError);
+}
+
+// The smooth (slow-onset) profile: position is the integral of the rate, the rate is the
+// derivative of position, 0 at both ends and positive inside, a single bump with no cruise,
+// peaking at (and never above) the cruise speed; the duration is amount·(15/8)/cruise.
+TEST(SimPath, SmoothProfileIsExactAndHasNoCruise) {
+  for (const auto& [amount, cruise] : {std::pair{1.5, 0.1}, {0.6, 0.1}, {3.0, 0.05}}) {
+    const SpeedProfile p(Leg::Profile::kSmooth, amount, cruise, 2.0);
+    const double T = p.duration();
+    EXPECT_NEAR(T, amount * 15.0 / 8.0 / cruise, 1e-12);
+    EXPECT_EQ(p.cruise_time, 0.0);
+    EXPECT_EQ(p.rate(0.0), 0.0);
+    EXPECT_EQ(p.rate(T), 0.0);
+    EXPECT_EQ(p.position(0.0), 0.0);
+    EXPECT_EQ(p.position(T), amount);
+    EXPECT_NEAR(p.rate(T / 2), cruise, 1e-12);
+    // Simpson's rule on the rate reproduces the position; central differences of the position
+    // reproduce the rate.
+    const int n = 2000;
+    const double h = T / n;
+    double integral = 0, peak = 0, prev = 0;
+    for (int k = 1; k < n; ++k) {
+      const double t = k * h;
+      const double r = p.rate(t);
+      EXPECT_GT(r, 0.0) << "t " << t;
+      peak = std::max(peak, r);
+      if (2 * k < n) {
+        EXPECT_GT(r, prev) << "rising until the middle, no cruise";
+      } else if (2 * k > n + 1) {
+        EXPECT_LT(r, prev) << "falling after the middle, no cruise";
+      }
+      prev = r;
+      if (k % 2 == 0) {
+        integral += h / 3 * (p.rate(t - 2 * h) + 4 * p.rate(t - h) + r);
+        EXPECT_NEAR(integral, p.position(t), 1e-10 * amount) << "t " << t;
+      }
+      const double e = 1e-5 * T;
+      EXPECT_NEAR((p.position(t + e) - p.position(t - e)) / (2 * e), r, 1e-7 * cruise);
+    }
+    EXPECT_LE(peak, cruise * (1 + 1e-12));
+  }
+  // The default profile still cruises.
+  const SpeedProfile ramped(Leg::Profile::kRamped, 1.5, 0.1, 2.0);
+  EXPECT_NEAR(ramped.cruise_time, 13.0, 1e-12);
+  EXPECT_EQ(ramped.rate(8.0), 0.1);
+}
+
+// Smooth straights, arcs and turns in place through samplePath: the commanded rates integrate
+// to the poses, and each leg ends where its amount says.
+TEST(SimPath, SmoothLegsOfEveryKindIntegrateToTheirPoses) {
+  std::vector<Leg> legs{rest(1), straight(0.8), rest(1), arc(0.9, 1.5), rest(1), turn(-0.7),
+                        rest(1), arc(0.5, -2.0), rest(1)};
+  for (Leg& l : legs) l.profile = Leg::Profile::kSmooth;
+  const Scenario sc = quiet("flat", legs);
+  const auto path = samplePath(sc, rocky7());
+  const double dt = 1.0 / sc.truth_rate_hz;
+  double yaw = path.front().yaw, s = 0;
+  double moving_time = 0;
+  for (size_t k = 1; k < path.size(); ++k) {
+    const PathSample &a = path[k - 1], &b = path[k];
+    yaw += 0.5 * (a.yaw_rate_rad_s + b.yaw_rate_rad_s) * dt;
+    s += 0.5 * (a.speed_mps + b.speed_mps) * dt;
+    EXPECT_NEAR(b.yaw - a.yaw, 0.5 * (a.yaw_rate_rad_s + b.yaw_rate_rad_s) * dt, 1e-8);
+    const Vec2d mid_dir(std::cos(0.5 * (a.yaw + b.yaw)), std::sin(0.5 * (a.yaw + b.yaw)));
+    EXPECT_NEAR((b.centre - a.centre).dot(mid_dir), 0.5 * (a.speed_mps + b.speed_mps) * dt, 1e-8);
+    EXPECT_LE(b.progress, 1.0 + 1e-12);
+    if (b.moving) moving_time += dt;
+  }
+  EXPECT_NEAR(s, 0.8 + 0.9 + 0.5, 1e-6);
+  EXPECT_NEAR(yaw, path.back().yaw, 1e-6);
+  EXPECT_NEAR(path.back().yaw - path.front().yaw, 0.9 / 1.5 - 0.7 + 0.5 / -2.0, 1e-12);
+  EXPECT_NEAR(moving_time, (0.8 + 0.9 + 0.5) * 15 / 8 / 0.05 + 0.7 * 15 / 8 / 0.1, 0.1);
+  // A straight ends exactly its distance along the heading.
+  const auto line = samplePath(quiet("flat", {legs[1]}), rocky7());
+  EXPECT_NEAR((line.back().centre - line.front().centre).norm(), 0.8, 1e-12);
+}
+
+/// Smallest range of `speed` over any `window`-s stretch of each moving run (a
+/// constant-speed phase has range 0).
+double smallestWindowRange(const std::vector<double>& speed, const std::vector<bool>& moving,
+                           double rate_hz, double window) {
+  const size_t w = static_cast<size_t>(window * rate_hz);
+  double smallest = 1e9;
+  for (size_t i = 0; i + w < speed.size(); ++i) {
+    bool all = true;
+    double lo = 1e9, hi = -1e9;
+    for (size_t j = i; j <= i + w && all; ++j) {
+      all = moving[j];
+      lo = std::min(lo, speed[j]), hi = std::max(hi, speed[j]);
+    }
+    if (all) smallest = std::min(smallest, hi - lo);
+  }
+  return smallest;
+}
+
+TEST(SimScenarios, SlowOnsetNeverCruises) {
+  const Scenario sc = loadScenario("slow-onset", datasets());
+  EXPECT_EQ(sc.terrain.type, "plane");
+  EXPECT_GT(std::abs(sc.terrain.slope_rad), 0.03);
+  EXPECT_EQ(sc.sensors.joints_rate_hz, 50.0);
+  EXPECT_NEAR(sc.sensors.joint_angle_noise_rad, 0.05 * M_PI / 180, 1e-8);
+  double distance = 0;
+  int motion_legs = 0, kinds = 0;
+  for (const Leg& l : sc.legs) {
+    if (l.kind == Leg::Kind::kRest) continue;
+    ++motion_legs, kinds |= 1 << static_cast<int>(l.kind);
+    EXPECT_EQ(l.profile, Leg::Profile::kSmooth);
+    if (l.kind != Leg::Kind::kTurnInPlace) distance += std::abs(l.distance_m);
+  }
+  EXPECT_GE(motion_legs, 10);
+  EXPECT_EQ(kinds, 0b1110);  // straights, arcs and turns in place
+  EXPECT_GE(distance, 10.0);
+  EXPECT_LE(distance, 15.0);
+
+  const Simulation sim = simulate(sc, rocky7Dir(), 1);
+  std::vector<double> speed, true_speed;
+  std::vector<bool> moving;
+  for (const TruthSample& t : sim.truth) {
+    // commanded motion: |v_x| for straights and arcs, |ω_z| (normalised) for turns in place
+    speed.push_back(std::max(std::abs(t.cmd[0]) / 0.1, std::abs(t.cmd[5]) / 0.1));
+    true_speed.push_back(t.v_body.norm());
+    moving.push_back(t.moving);
+  }
+  // Never constant over any 2 s while moving (a cruise phase would give 0); the ramped
+  // multi-stop does cruise.
+  const double range = smallestWindowRange(speed, moving, sc.truth_rate_hz, 2.0);
+  EXPECT_GT(range, 2e-3);
+  EXPECT_LT(range, 1.0);  // there are moving windows at all
+  EXPECT_LE(*std::max_element(speed.begin(), speed.end()), 1.0 + 1e-9);
+  const auto ms = samplePath(loadScenario("multi-stop", datasets()), rocky7());
+  std::vector<double> ms_speed;
+  std::vector<bool> ms_moving;
+  for (const PathSample& p : ms) ms_speed.push_back(p.progress), ms_moving.push_back(p.moving);
+  EXPECT_LT(smallestWindowRange(ms_speed, ms_moving, 200.0, 2.0), 1e-12);
+  // The true body speed stays below the cruise speed plus slip and the lever arm of a turn.
+  EXPECT_LT(*std::max_element(true_speed.begin(), true_speed.end()), 0.13);
+}
+
+TEST(SimScenarios, SmoothProfileKeyIsChecked) {
+  EXPECT_EQ(loadScenario("straight-1m", datasets()).legs[1].profile, Leg::Profile::kRamped);
+  EXPECT_EQ(loadScenario("straight-1m", datasets(), {"path.1.profile=smooth"}).legs[1].profile,
+            Leg::Profile::kSmooth);
+  EXPECT_THROW(loadScenario("straight-1m", datasets(), {"path.1.profile=bumpy"}), InputError);
+  EXPECT_THROW(loadScenario("straight-1m", datasets(), {"path.0.profile=smooth"}), InputError);
 }
 
 }  // namespace

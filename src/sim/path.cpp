@@ -1,5 +1,6 @@
 // Reference path of the turn-centre point: legs with quintic speed ramps (the "5th-order spline"
-// of the paper's controller, K §4.2), Ackermann steering of the front wheels (K §2.3.4).
+// of the paper's controller, K §4.2) or one smooth bump per leg (slow onset, no cruise),
+// Ackermann steering of the front wheels (K §2.3.4).
 #include <cmath>
 
 #include "traverse/sim/simulator.h"
@@ -14,28 +15,6 @@ double smoothstep(double u) {
 double smoothstepIntegral(double u) {
   return u <= 0 ? 0 : u >= 1 ? u - 0.5 : u * u * u * u * (2.5 - 3 * u + u * u);
 }
-
-/// Speed profile of a move of `amount` (> 0) at cruise `c` with ramps of `ramp` s.
-struct Profile {
-  double amount, cruise, ramp, cruise_time;
-  Profile(double a, double c, double r) : amount(a), cruise(c), ramp(r) {
-    if (amount < cruise * ramp) cruise = amount / ramp;  // too short to reach cruise speed
-    cruise_time = (amount - cruise * ramp) / cruise;
-  }
-  double duration() const { return 2 * ramp + cruise_time; }
-  double rate(double t) const {
-    if (t < ramp) return cruise * smoothstep(t / ramp);
-    if (t < ramp + cruise_time) return cruise;
-    return cruise * smoothstep((duration() - t) / ramp);
-  }
-  double position(double t) const {
-    if (t <= 0) return 0;
-    if (t >= duration()) return amount;
-    if (t < ramp) return cruise * ramp * smoothstepIntegral(t / ramp);
-    if (t < ramp + cruise_time) return 0.5 * cruise * ramp + cruise * (t - ramp);
-    return amount - cruise * ramp * smoothstepIntegral((duration() - t) / ramp);
-  }
-};
 
 /// Steering of the front wheels (at zero suspension angles) that puts the instantaneous centre
 /// of rotation at (x_c, R) in the body; a turn in place is R = 0.
@@ -53,6 +32,38 @@ Vec2d steeringFor(const rover::RoverGeometry& geo, const Leg& leg) {
 }
 
 }  // namespace
+
+SpeedProfile::SpeedProfile(Leg::Profile k, double a, double c, double r)
+    : kind(k), amount(a), cruise(c), ramp(r), cruise_time(0.0) {
+  if (kind == Leg::Profile::kSmooth) return;
+  if (amount < cruise * ramp) cruise = amount / ramp;  // too short to reach cruise speed
+  cruise_time = (amount - cruise * ramp) / cruise;
+}
+
+double SpeedProfile::duration() const {
+  if (kind == Leg::Profile::kSmooth) return amount * (15.0 / 8.0) / cruise;
+  return 2 * ramp + cruise_time;
+}
+
+double SpeedProfile::rate(double t) const {
+  if (kind == Leg::Profile::kSmooth) {
+    const double T = duration(), u = t / T;
+    if (u <= 0 || u >= 1) return 0;
+    return amount / T * 30 * u * u * (1 - u) * (1 - u);  // d/dt amount·smoothstep(t/T)
+  }
+  if (t < ramp) return cruise * smoothstep(t / ramp);
+  if (t < ramp + cruise_time) return cruise;
+  return cruise * smoothstep((duration() - t) / ramp);
+}
+
+double SpeedProfile::position(double t) const {
+  if (t <= 0) return 0;
+  if (t >= duration()) return amount;
+  if (kind == Leg::Profile::kSmooth) return amount * smoothstep(t / duration());
+  if (t < ramp) return cruise * ramp * smoothstepIntegral(t / ramp);
+  if (t < ramp + cruise_time) return 0.5 * cruise * ramp + cruise * (t - ramp);
+  return amount - cruise * ramp * smoothstepIntegral((duration() - t) / ramp);
+}
 
 std::vector<PathSample> samplePath(const Scenario& sc, const rover::RoverGeometry& geo) {
   const double dt = 1.0 / sc.truth_rate_hz;
@@ -84,7 +95,8 @@ std::vector<PathSample> samplePath(const Scenario& sc, const rover::RoverGeometr
     const bool turn = leg.kind == Leg::Kind::kTurnInPlace;
     const double amount = turn ? leg.angle_rad : leg.distance_m;
     const double sign = amount < 0 ? -1.0 : 1.0;
-    const Profile prof(std::abs(amount), turn ? leg.rate_rad_s : leg.speed_mps, leg.ramp_s);
+    const SpeedProfile prof(leg.profile, std::abs(amount), turn ? leg.rate_rad_s : leg.speed_mps,
+                            leg.ramp_s);
     const Vec2d c0 = centre;
     const double yaw0 = yaw;
     auto pose = [&](double s, Vec2d* c, double* y) {  // s: signed distance or angle travelled

@@ -56,7 +56,7 @@ void applyOverride(YAML::Node root, const std::string& assignment) {
 Leg readLeg(const YamlReader& r, const YAML::Node& n, const std::string& prefix) {
   r.onlyKeys(n, prefix,
              {"rest", "straight", "arc", "turn", "radius_m", "speed_mps", "rate_rad_s", "ramp_s",
-              "steer_s"});
+              "steer_s", "profile"});
   Leg leg;
   int kinds = 0;
   if (n["rest"])
@@ -77,6 +77,14 @@ Leg readLeg(const YamlReader& r, const YAML::Node& n, const std::string& prefix)
   leg.rate_rad_s = r.number(n, prefix, "rate_rad_s", leg.rate_rad_s, 1e-4, 2.0);
   leg.ramp_s = r.number(n, prefix, "ramp_s", leg.ramp_s, 0.01, 1e3);
   leg.steer_s = r.number(n, prefix, "steer_s", leg.steer_s, 0.01, 1e3);
+  const std::string profile = r.string(n, prefix, "profile", "ramped");
+  if (profile == "smooth") {
+    leg.profile = Leg::Profile::kSmooth;
+  } else if (profile != "ramped") {
+    r.fail(n["profile"], prefix + ".profile", "expected ramped or smooth, got '" + profile + "'");
+  }
+  if (n["profile"] && leg.kind == Leg::Kind::kRest)
+    r.fail(n["profile"], prefix + ".profile", "a rest has no speed profile");
   return leg;
 }
 

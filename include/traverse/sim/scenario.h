@@ -13,6 +13,9 @@ namespace traverse::sim {
 
 struct Leg {
   enum class Kind { kRest, kStraight, kArc, kTurnInPlace };
+  /// Speed profile of a motion leg: kRamped = quintic ramps of `ramp_s` and a cruise phase;
+  /// kSmooth = one bump 30u²(1−u)² over the whole leg (no cruise), peaking at the cruise speed.
+  enum class Profile { kRamped, kSmooth };
   Kind kind = Kind::kRest;
   double duration_s = 10.0;  ///< rest
   double distance_m = 1.0;   ///< straight, arc (path length of the turn centre point)
@@ -22,6 +25,7 @@ struct Leg {
   double rate_rad_s = 0.1;   ///< cruise yaw rate (turn in place)
   double ramp_s = 2.0;       ///< quintic speed ramps at start and end
   double steer_s = 1.0;      ///< time to steer the front wheels before moving (if they must)
+  Profile profile = Profile::kRamped;
 };
 
 struct TerrainSpec {

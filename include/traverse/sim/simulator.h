@@ -55,6 +55,21 @@ struct PathSample {
   double progress = 0.0;        ///< |speed| / cruise in [0, 1] (0 at rest)
   bool moving = false;
 };
+
+/// Speed profile of one motion leg moving `amount` (> 0: metres or radians) at cruise speed
+/// `cruise`: position(t) in [0, amount] over [0, duration()] and its exact derivative rate(t).
+/// kRamped: quintic ramps of `ramp` s and a cruise phase (cruise lowered if the leg is too short
+/// to reach it). kSmooth: rate = (amount/T)·30u²(1−u)², u = t/T, position = amount·smoothstep(u),
+/// T = amount·(15/8)/cruise so the peak (u = ½) is the cruise speed; `ramp` is unused.
+struct SpeedProfile {
+  SpeedProfile(Leg::Profile kind, double amount, double cruise, double ramp);
+  double duration() const;
+  double rate(double t) const;
+  double position(double t) const;
+  Leg::Profile kind;
+  double amount, cruise, ramp, cruise_time;
+};
+
 std::vector<PathSample> samplePath(const Scenario& scenario, const rover::RoverGeometry& geometry);
 
 }  // namespace traverse::sim
