@@ -193,7 +193,7 @@ void smoothSegment(benchmark::State& state, bool covariance) {
   state.counters["rss_before_MB"] = rss_before_kb / 1024.0;
   state.counters["setup_sim_s"] = c.sim_seconds;
   state.counters["setup_est_s"] = c.estimate_seconds;
-  state.SetLabel(last.status + ", " + std::to_string(c.est.segmentation.segments.size()) +
+  state.SetLabel(std::string(smoother::toString(last.status)) + ", " + std::to_string(c.est.segmentation.segments.size()) +
                  " segmentation segments, " + std::to_string(c.spec.rests.size()) + " rests");
 }
 

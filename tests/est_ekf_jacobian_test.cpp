@@ -54,7 +54,9 @@ void expectSlipJacobianMatchesNumeric(bool with_command) {
       };
       const Eigen::Matrix<double, 4, 7> Hn = -testing::numericJacobian<4, 7>(r, s);
       EXPECT_LE((H - Hn).cwiseAbs().maxCoeff(), 1e-7 * std::max(1.0, Hn.cwiseAbs().maxCoeff()))
-          << "wheel " << i << " command " << with_command << "\nH:\n" << H << "\nnumeric:\n" << Hn;
+          << "wheel " << i << " command " << with_command << "\nH:\n"
+          << H << "\nnumeric:\n"
+          << Hn;
       // dt_ds is the constraint's own Jacobian; with a command it equals H.
       if (with_command) {
         EXPECT_LE((H - Jt).cwiseAbs().maxCoeff(), 1e-15);
@@ -63,7 +65,9 @@ void expectSlipJacobianMatchesNumeric(bool with_command) {
   }
 }
 
-TEST(EstEkfJacobian, SlipUpdateWithCommandMatchesNumeric) { expectSlipJacobianMatchesNumeric(true); }
+TEST(EstEkfJacobian, SlipUpdateWithCommandMatchesNumeric) {
+  expectSlipJacobianMatchesNumeric(true);
+}
 
 TEST(EstEkfJacobian, SlipUpdateWithoutCommandDifferentiatesTheNominalSlip) {
   expectSlipJacobianMatchesNumeric(false);
@@ -91,7 +95,7 @@ TEST(EstEkfJacobian, SpinRowHasNoInformationOnYawRateWithoutCommand) {
     EXPECT_NEAR(r[1], 0.0, 1e-12) << "wheel " << i;
     EXPECT_NEAR(r[3], 0.0, 1e-12) << "wheel " << i;
     EXPECT_NEAR(Jt(3, 5), 1.0, 1e-12) << "wheel " << i;  // the constraint's spin row: ∂/∂ω_z = 1
-    EXPECT_NEAR(H(3, 5), 0.0, 1e-12) << "wheel " << i;   // the whole residual's: none
+    EXPECT_NEAR(H(3, 5), 0.0, 1e-12) << "wheel " << i;  // the whole residual's: none
   }
 }
 

@@ -92,7 +92,9 @@ void expectSameSummary(const SegmentSummary& a, const SegmentSummary& b) {
               sameBits(a.stitch_rotation_rad, b.stitch_rotation_rad));
 }
 
-bool validStatus(const std::string& s) {
+// The segments.csv spelling of every status is one of the three outputs.md names.
+bool validStatus(SegmentStatus status) {
+  const std::string s = toString(status);
   return s == "converged" || s == "no_convergence" || s == "fallback_ekf";
 }
 
@@ -115,7 +117,7 @@ TEST(Smoother, NoiseFreeLogSmoothsToTruth) {
   ASSERT_TRUE(e.smoothed.has_value());
   const SmootherResult& r = *e.smoothed;
   ASSERT_EQ(r.segments.size(), 1u);
-  for (const SegmentSummary& g : r.segments) EXPECT_EQ(g.status, "converged");
+  for (const SegmentSummary& g : r.segments) EXPECT_EQ(g.status, SegmentStatus::kConverged);
   ASSERT_EQ(r.trajectory.nodes.size(), e.ekf.trajectory.nodes.size());
 
   // As eval::evaluate: the start position is not observable, the estimate is translated onto
@@ -145,7 +147,7 @@ TEST(Smoother, NeverWorseThanTheEkfSeed) {
     ASSERT_TRUE(e.smoothed.has_value());
     ASSERT_FALSE(e.smoothed->segments.empty());
     for (const SegmentSummary& g : e.smoothed->segments) {
-      EXPECT_EQ(g.status, "converged") << "seed " << seed;
+      EXPECT_EQ(g.status, SegmentStatus::kConverged) << "seed " << seed;
       EXPECT_GT(g.iterations, 0) << "seed " << seed;
       EXPECT_TRUE(std::isfinite(g.seed_cost) && std::isfinite(g.final_cost));
       EXPECT_GT(g.final_cost, 0.0);
@@ -169,7 +171,7 @@ TEST(Smoother, RecoversAnInjectedBias) {
     ASSERT_TRUE(e.smoothed.has_value());
     ASSERT_EQ(e.smoothed->segments.size(), 1u);
     const SegmentSummary& g = e.smoothed->segments[0];
-    EXPECT_EQ(g.status, "converged");
+    EXPECT_EQ(g.status, SegmentStatus::kConverged);
     const est::TrajectoryNode& ekf_mid = e.ekf.trajectory.nodes[g.first_node + g.num_nodes / 2];
     const double truth_bias = eval::TruthTrajectory(*s.log.truth).bias(ekf_mid.t).z();
     ASSERT_DOUBLE_EQ(truth_bias, 0.003);
@@ -245,7 +247,7 @@ TEST(Smoother, SharedRestWindowsAgree) {
   };
   for (size_t s = 0; s < r.segments.size(); ++s) {
     const SegmentSummary& g = r.segments[s];
-    EXPECT_EQ(g.status, "converged");
+    EXPECT_EQ(g.status, SegmentStatus::kConverged);
     if (s == 0) {
       EXPECT_EQ(g.stitch_rotation_rad, 0.0);
       continue;
@@ -291,10 +293,10 @@ TEST(Smoother, FallsBackToTheEkfWhenTheSolverFails) {
   options.threads = 1;
   const SmootherResult r = smooth(log, e.segmentation, e.ekf.trajectory, options);
   ASSERT_EQ(r.segments.size(), 3u);
-  for (const SegmentSummary& g : r.segments) EXPECT_TRUE(validStatus(g.status)) << g.status;
-  EXPECT_EQ(r.segments[0].status, "converged");
-  EXPECT_EQ(r.segments[1].status, "fallback_ekf");
-  EXPECT_EQ(r.segments[2].status, "converged");
+  for (const SegmentSummary& g : r.segments) EXPECT_TRUE(validStatus(g.status)) << toString(g.status);
+  EXPECT_EQ(r.segments[0].status, SegmentStatus::kConverged);
+  EXPECT_EQ(r.segments[1].status, SegmentStatus::kFallbackEkf);
+  EXPECT_EQ(r.segments[2].status, SegmentStatus::kConverged);
   // The fallback segment's nodes are the EKF's, up to the stitch's rigid move (which leaves the
   // body-frame states and the distances between nodes alone); its bias is the EKF's at its
   // middle node.
@@ -342,8 +344,8 @@ TEST(Smoother, StopsAtTheIterationLimitWithoutLosingGround) {
   const pipeline::Estimates e = estimateSmoothed(s.log, options);
   ASSERT_TRUE(e.smoothed.has_value());
   for (const SegmentSummary& g : e.smoothed->segments) {
-    EXPECT_TRUE(validStatus(g.status)) << g.status;
-    EXPECT_EQ(g.status, "no_convergence");
+    EXPECT_TRUE(validStatus(g.status)) << toString(g.status);
+    EXPECT_EQ(g.status, SegmentStatus::kNoConvergence);
     EXPECT_EQ(g.iterations, 1);
     EXPECT_LE(g.final_cost, g.initial_cost);
   }
@@ -369,7 +371,7 @@ TEST(Smoother, RandomWalkBiasNeedsARandomWalkNoise) {
   options.bias_model = SmootherOptions::BiasModel::kConstant;  // fine without a random walk
   const pipeline::Estimates e = estimateSmoothed(s.log, options);
   ASSERT_TRUE(e.smoothed.has_value());
-  for (const SegmentSummary& g : e.smoothed->segments) EXPECT_NE(g.status, "fallback_ekf");
+  for (const SegmentSummary& g : e.smoothed->segments) EXPECT_NE(g.status, SegmentStatus::kFallbackEkf);
 }
 
 // Marginal covariances: symmetric positive definite at every node; the position uncertainty

@@ -102,7 +102,8 @@ pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   return c;
 }
 
-pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global, bool smooth) {
+pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global,
+                                bool smooth) {
   io::ReadReport report;
   const io::TraverseLog log = io::readLog(o.log_dir, io::ReadOptions{o.skip_bad_rows}, &report);
   for (const auto& [file, n] : report.skipped_rows)
@@ -141,14 +142,15 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
       double solve = 0, cov = 0;
       size_t nodes = 0;
       for (const auto& g : e.smoothed->segments) {
-        converged += g.status == "converged", fallback += g.status == "fallback_ekf";
+        converged += g.status == smoother::SegmentStatus::kConverged,
+            fallback += g.status == smoother::SegmentStatus::kFallbackEkf;
         solve += g.solve_seconds, cov += g.covariance_seconds, nodes += g.num_nodes;
       }
       std::cout << "smoother: " << e.smoothed->segments.size() << " segments (" << converged
                 << " converged, " << fallback << " fell back to the EKF), " << nodes
                 << " nodes; solve " << solve << " s, covariance " << cov << " s (CPU, summed)\n";
       for (const auto& g : e.smoothed->segments) {
-        if (g.status == "fallback_ekf")
+        if (g.status == smoother::SegmentStatus::kFallbackEkf)
           std::cout << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
                     << " s) kept the EKF's states: " << g.message << "\n";
       }

@@ -742,18 +742,18 @@ SegmentSolution SegmentBuilder::solve() {
     for (double v : b.x) finite = finite && std::isfinite(v);
   }
   if (summary.termination_type == ceres::CONVERGENCE && finite)
-    sum.status = "converged";
+    sum.status = SegmentStatus::kConverged;
   else if (summary.termination_type == ceres::NO_CONVERGENCE && finite &&
            summary.final_cost <= summary.initial_cost)
-    sum.status = "no_convergence";
+    sum.status = SegmentStatus::kNoConvergence;
   else
-    sum.status = "fallback_ekf";
-  if (sum.status == "fallback_ekf") sum.final_cost = sum.seed_cost;  // the EKF's states stay
+    sum.status = SegmentStatus::kFallbackEkf;
+  if (sum.status == SegmentStatus::kFallbackEkf) sum.final_cost = sum.seed_cost;  // the EKF's states stay
 
   out.nodes.resize(n_);
   for (size_t k = 0; k < n_; ++k) {
     est::TrajectoryNode& node = out.nodes[k];
-    if (sum.status == "fallback_ekf") {
+    if (sum.status == SegmentStatus::kFallbackEkf) {
       node = seedNode(k);
       continue;
     }
@@ -766,12 +766,12 @@ SegmentSolution SegmentBuilder::solve() {
     for (int i = 0; i < 6; ++i) node.xi[static_cast<size_t>(i)] = b.xi[i];
     node.bias = Eigen::Map<const Vec3d>(randomWalkBias() ? b.b : segment_bias_);
   }
-  if (sum.status != "fallback_ekf" && o_.covariance) {
+  if (sum.status != SegmentStatus::kFallbackEkf && o_.covariance) {
     const auto tc = std::chrono::steady_clock::now();
     out.has_covariance = computeCovariance(&out);
     sum.covariance_seconds = seconds(tc);
   }
-  if (sum.status == "fallback_ekf") out.has_covariance = true;  // the EKF's
+  if (sum.status == SegmentStatus::kFallbackEkf) out.has_covariance = true;  // the EKF's
   const est::TrajectoryNode& mid = out.nodes[n_ / 2];
   out.bias = mid.bias, out.bias_sigma = mid.bias_sigma;
   sum.num_nodes = n_;
@@ -797,7 +797,7 @@ SegmentSolution solveSegment(const SmootherData& data, const SegmentSpec& spec,
       out.nodes.push_back(data.seed.nodes[data.nodes[k]]);
     out.has_covariance = data.seed.has_covariance;
     SegmentSummary& sum = out.summary;
-    sum.status = "fallback_ekf";
+    sum.status = SegmentStatus::kFallbackEkf;
     sum.message = e.what();
     sum.num_nodes = out.nodes.size();
     sum.t_start = out.nodes.front().t, sum.t_end = out.nodes.back().t;

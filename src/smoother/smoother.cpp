@@ -162,7 +162,7 @@ std::vector<est::SegmentRow> smootherSegmentRows(const std::vector<est::SegmentR
       if (r >= rows.size()) continue;
       est::SegmentRow& row = rows[r];
       row.bias = s.bias, row.sigma_bias = s.bias_sigma;
-      row.status = s.status;
+      row.status = toString(s.status);
       row.iterations = s.iterations;
       row.final_cost = s.final_cost;
       row.solve_seconds = s.solve_seconds;

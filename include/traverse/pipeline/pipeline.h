@@ -1,5 +1,6 @@
-// The estimation pipeline on one log (the layer above estimators and smoother): segmentation → initial state → dead reckoning and the
-// forward EKF → the per-segment batch smoother (when asked), and the rows of segments.csv.
+// The estimation pipeline on one log (the layer above estimators and smoother): segmentation →
+// initial state → dead reckoning and the forward EKF → the per-segment batch smoother (when asked),
+// and the rows of segments.csv.
 #pragma once
 
 #include <optional>

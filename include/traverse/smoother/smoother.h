@@ -70,6 +70,25 @@ struct SmootherOptions {
   bool solver_report = false;  ///< print Ceres' full report per segment to stderr
 };
 
+/// How a segment's solve ended (segments.csv `status`: toString).
+enum class SegmentStatus {
+  kConverged,      ///< converged: Ceres' convergence test held
+  kNoConvergence,  ///< no_convergence: stopped at the iteration limit; the best states are kept
+  kFallbackEkf,    ///< fallback_ekf: the solve failed or could not be set up; the EKF's states
+};
+/// The segments.csv spelling: converged | no_convergence | fallback_ekf.
+inline const char* toString(SegmentStatus s) {
+  switch (s) {
+    case SegmentStatus::kConverged:
+      return "converged";
+    case SegmentStatus::kNoConvergence:
+      return "no_convergence";
+    case SegmentStatus::kFallbackEkf:
+      return "fallback_ekf";
+  }
+  return "unknown";
+}
+
 /// What the smoother reports per segment (segments.csv adds the bias and solver columns).
 struct SegmentSummary {
   int index = 0;
@@ -77,7 +96,7 @@ struct SegmentSummary {
   double t_start = 0.0, t_end = 0.0;
   size_t first_node = 0, num_nodes = 0;  ///< the nodes it reports in the smoothed trajectory
   Vec3d bias = Vec3d::Zero(), bias_sigma = Vec3d::Zero();
-  std::string status;  ///< converged | no_convergence | fallback_ekf
+  SegmentStatus status = SegmentStatus::kFallbackEkf;
   int iterations = 0;
   /// ½ Σ ρ(‖r‖²): at the EKF's states (seed_cost), where Levenberg-Marquardt started (the EKF
   /// made self-consistent, when that is lower) and at the solution (the EKF's cost again when
