@@ -5,6 +5,7 @@
 #include <random>
 
 #include "support/jacobian_check.h"
+#include "support/rocky7.h"
 #include "traverse/estimators/ekf.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/rover/nominal_slip.h"
@@ -13,13 +14,7 @@
 namespace traverse::est {
 namespace {
 
-const rover::RoverGeometry& rocky7() {
-  static const rover::RoverGeometry geo = [] {
-    const std::string dir = testing::sourceDir() + "/datasets/rovers/rocky7/";
-    return io::loadRoverGeometry(dir + "rover.urdf", io::loadRoverConfig(dir + "rover.yaml"));
-  }();
-  return geo;
-}
+using testing::rocky7;
 
 // A joint sample at random suspension and steering angles and random joint rates.
 rover::JointSample randomJointSample(std::mt19937& rng) {

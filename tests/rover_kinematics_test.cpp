@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "support/jacobian_check.h"
+#include "support/rocky7.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/rover/joint_rates.h"
 #include "traverse/rover/kinematics.h"
@@ -13,13 +14,7 @@ namespace {
 
 using testing::randomVector;
 
-const RoverGeometry& rocky7() {
-  static const RoverGeometry geo = [] {
-    const std::string dir = testing::sourceDir() + "/datasets/rovers/rocky7/";
-    return io::loadRoverGeometry(dir + "rover.urdf", io::loadRoverConfig(dir + "rover.yaml"));
-  }();
-  return geo;
-}
+using testing::rocky7;
 
 JointVectord randomSuspension(std::mt19937& rng) {
   JointVectord q = JointVectord::Zero();

@@ -3,19 +3,14 @@
 #include <gtest/gtest.h>
 
 #include "support/jacobian_check.h"
+#include "support/rocky7.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/sim/contact_solver.h"
 
 namespace traverse::sim {
 namespace {
 
-const rover::RoverGeometry& rocky7() {
-  static const rover::RoverGeometry geo = [] {
-    const std::string dir = testing::sourceDir() + "/datasets/rovers/rocky7/";
-    return io::loadRoverGeometry(dir + "rover.urdf", io::loadRoverConfig(dir + "rover.yaml"));
-  }();
-  return geo;
-}
+using testing::rocky7;
 
 struct Case {
   const char* name;
