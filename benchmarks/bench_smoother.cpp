@@ -39,9 +39,9 @@
 #include <vector>
 
 #include "traverse/core/memory.h"
-#include "traverse/pipeline/pipeline.h"
 #include "traverse/io/log_reader.h"
 #include "traverse/io/log_writer.h"
+#include "traverse/pipeline/pipeline.h"
 #include "traverse/sim/simulator.h"
 #include "traverse/smoother/segment_problem.h"
 
@@ -193,8 +193,9 @@ void smoothSegment(benchmark::State& state, bool covariance) {
   state.counters["rss_before_MB"] = rss_before_kb / 1024.0;
   state.counters["setup_sim_s"] = c.sim_seconds;
   state.counters["setup_est_s"] = c.estimate_seconds;
-  state.SetLabel(std::string(smoother::toString(last.status)) + ", " + std::to_string(c.est.segmentation.segments.size()) +
-                 " segmentation segments, " + std::to_string(c.spec.rests.size()) + " rests");
+  state.SetLabel(std::string(smoother::toString(last.status)) + ", " +
+                 std::to_string(c.est.segmentation.segments.size()) + " segmentation segments, " +
+                 std::to_string(c.spec.rests.size()) + " rests");
 }
 
 void BM_SmoothSegment(benchmark::State& state) {

@@ -3,8 +3,8 @@
 #include <Eigen/Eigenvalues>
 
 #include "support/jacobian_check.h"
-#include "traverse/pipeline/pipeline.h"
 #include "traverse/eval/metrics.h"
+#include "traverse/pipeline/pipeline.h"
 #include "traverse/sim/simulator.h"
 
 namespace traverse::est {

@@ -11,8 +11,8 @@
 #include "support/jacobian_check.h"
 #include "traverse/core/error.h"
 #include "traverse/core/so3.h"
-#include "traverse/pipeline/pipeline.h"
 #include "traverse/eval/metrics.h"
+#include "traverse/pipeline/pipeline.h"
 #include "traverse/sim/simulator.h"
 
 namespace traverse::smoother {
@@ -33,7 +33,8 @@ sim::Simulation simulate(const std::string& scenario, std::vector<std::string> o
   return sim::simulate(sc, sim::roverDirectory(sc, datasets()), seed);
 }
 
-pipeline::Estimates estimateSmoothed(const io::TraverseLog& log, const SmootherOptions& options = {}) {
+pipeline::Estimates estimateSmoothed(const io::TraverseLog& log,
+                                     const SmootherOptions& options = {}) {
   pipeline::PipelineConfig config;
   config.smooth = true;
   config.smoother = options;
@@ -293,7 +294,8 @@ TEST(Smoother, FallsBackToTheEkfWhenTheSolverFails) {
   options.threads = 1;
   const SmootherResult r = smooth(log, e.segmentation, e.ekf.trajectory, options);
   ASSERT_EQ(r.segments.size(), 3u);
-  for (const SegmentSummary& g : r.segments) EXPECT_TRUE(validStatus(g.status)) << toString(g.status);
+  for (const SegmentSummary& g : r.segments)
+    EXPECT_TRUE(validStatus(g.status)) << toString(g.status);
   EXPECT_EQ(r.segments[0].status, SegmentStatus::kConverged);
   EXPECT_EQ(r.segments[1].status, SegmentStatus::kFallbackEkf);
   EXPECT_EQ(r.segments[2].status, SegmentStatus::kConverged);
@@ -371,7 +373,8 @@ TEST(Smoother, RandomWalkBiasNeedsARandomWalkNoise) {
   options.bias_model = SmootherOptions::BiasModel::kConstant;  // fine without a random walk
   const pipeline::Estimates e = estimateSmoothed(s.log, options);
   ASSERT_TRUE(e.smoothed.has_value());
-  for (const SegmentSummary& g : e.smoothed->segments) EXPECT_NE(g.status, SegmentStatus::kFallbackEkf);
+  for (const SegmentSummary& g : e.smoothed->segments)
+    EXPECT_NE(g.status, SegmentStatus::kFallbackEkf);
 }
 
 // Marginal covariances: symmetric positive definite at every node; the position uncertainty

@@ -228,8 +228,8 @@ TEST(SimScenarios, BundledLogIsReproducible) {
 }
 
 TEST(SimScenarios, EveryBundledScenarioLoads) {
-  for (const char* name : {"straight-1m", "turn-in-place-360", "obstacle", "planar-18m",
-                           "multi-stop", "slow-onset"}) {
+  for (const char* name :
+       {"straight-1m", "turn-in-place-360", "obstacle", "planar-18m", "multi-stop", "slow-onset"}) {
     const Scenario sc = loadScenario(name, datasets());
     EXPECT_EQ(sc.name, name);
     EXPECT_FALSE(sc.legs.empty());
@@ -311,8 +311,8 @@ TEST(SimPath, SmoothProfileIsExactAndHasNoCruise) {
 // Smooth straights, arcs and turns in place through samplePath: the commanded rates integrate
 // to the poses, and each leg ends where its amount says.
 TEST(SimPath, SmoothLegsOfEveryKindIntegrateToTheirPoses) {
-  std::vector<Leg> legs{rest(1), straight(0.8), rest(1), arc(0.9, 1.5), rest(1), turn(-0.7),
-                        rest(1), arc(0.5, -2.0), rest(1)};
+  std::vector<Leg> legs{rest(1),    straight(0.8), rest(1),        arc(0.9, 1.5), rest(1),
+                        turn(-0.7), rest(1),       arc(0.5, -2.0), rest(1)};
   for (Leg& l : legs) l.profile = Leg::Profile::kSmooth;
   const Scenario sc = quiet("flat", legs);
   const auto path = samplePath(sc, rocky7());

@@ -33,6 +33,6 @@ void addSmootherOptions(CLI::App& cmd, PipelineOptions& options);
 pipeline::PipelineConfig pipelineConfig(const PipelineOptions& options);
 /// Reads the log, estimates, writes OUTDIR; returns what it estimated.
 pipeline::Estimates runPipeline(const PipelineOptions& options, const GlobalOptions& global,
-                           bool smooth);
+                                bool smooth);
 
 }  // namespace traverse::app

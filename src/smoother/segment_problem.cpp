@@ -16,10 +16,10 @@
 #include <ceres/ceres.h>
 
 #include "traverse/core/error.h"
-#include "traverse/smoother/chain_marginals.h"
 #include "traverse/rover/nominal_slip.h"
 #include "traverse/smoother/block_evaluation.h"
 #include "traverse/smoother/body_quaternion_manifold.h"
+#include "traverse/smoother/chain_marginals.h"
 #include "traverse/smoother/residuals/accel_velocity_process.h"
 #include "traverse/smoother/residuals/attitude_process.h"
 #include "traverse/smoother/residuals/gravity_residual.h"
@@ -615,7 +615,8 @@ bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
   const int bias_dim = bias_manifold_ ? bias_manifold_->TangentSize() : 3;
   const int node_dim = 18 + (randomWalkBias() ? bias_dim : 0);
   const int global_dim = randomWalkBias() ? 0 : bias_dim;
-  smoother::ChainInformation H = smoother::makeChainInformation(static_cast<int>(n_), node_dim, global_dim);
+  smoother::ChainInformation H =
+      smoother::makeChainInformation(static_cast<int>(n_), node_dim, global_dim);
   std::vector<double> jacobian;
   std::array<smoother::ChainPlace, kMaxBlocksPerResidual> places;
   std::array<double*, kMaxBlocksPerResidual> jacobians{};
@@ -632,7 +633,7 @@ bool SegmentBuilder::computeCovariance(SegmentSolution* out) {
                              nullptr, jacobians.data()))
       return false;
     smoother::addChainResidual(H, std::span(places.data(), static_cast<size_t>(e.num_blocks)),
-                          jacobians.data(), e.num_rows);
+                               jacobians.data(), e.num_rows);
   }
   const smoother::ChainMarginals m = smoother::chainMarginals(H);
   if (!m.ok) return false;
@@ -748,7 +749,8 @@ SegmentSolution SegmentBuilder::solve() {
     sum.status = SegmentStatus::kNoConvergence;
   else
     sum.status = SegmentStatus::kFallbackEkf;
-  if (sum.status == SegmentStatus::kFallbackEkf) sum.final_cost = sum.seed_cost;  // the EKF's states stay
+  if (sum.status == SegmentStatus::kFallbackEkf)
+    sum.final_cost = sum.seed_cost;  // the EKF's states stay
 
   out.nodes.resize(n_);
   for (size_t k = 0; k < n_; ++k) {

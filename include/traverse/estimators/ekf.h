@@ -152,7 +152,8 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log);
 /// the constraint alone, which carries the joint noise (rover::slipCovariance).
 Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample& js, int wheel,
                          const Twistd* commanded, const Eigen::Matrix<double, 7, 1>& s,
-                         Eigen::Matrix<double, 4, 7>* H, Eigen::Matrix<double, 4, 7>* dt_ds = nullptr);
+                         Eigen::Matrix<double, 4, 7>* H,
+                         Eigen::Matrix<double, 4, 7>* dt_ds = nullptr);
 
 /// χ² quantile for `dof` degrees of freedom (regularized incomplete gamma), for gating.
 double chiSquareQuantile(double probability, int dof);

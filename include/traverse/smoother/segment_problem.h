@@ -31,7 +31,7 @@ struct SmootherData {
                const SmootherOptions& options);
   const io::TraverseLog& log;
   const est::Trajectory& seed;                   ///< one node per joint sample
-  std::vector<rover::JointSample> joints;          ///< wheel frames and joint twists per joint sample
+  std::vector<rover::JointSample> joints;        ///< wheel frames and joint twists per joint sample
   std::vector<size_t> nodes;                     ///< joint-sample indices that are smoother nodes
   Eigen::Matrix<double, Eigen::Dynamic, 6> cmd;  ///< commanded (v, ω) per node (zero without)
   bool three_axis_gyro = false, has_cmd = false, accel_driven = false;
