@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "support/jacobian_check.h"
+#include "traverse/estimators/ekf.h"  // chiSquareQuantile
 #include "traverse/estimators/segmentation.h"
 #include "traverse/sim/simulator.h"
 
@@ -146,6 +147,58 @@ TEST(EstSegmentation, SlowStartsAndStopsAreNotSwallowedByRests) {
           << "seed " << seed << " window " << w.t_start << "–" << w.t_end;
     }
     EXPECT_EQ(seg.rests.size(), 5u) << "seed " << seed;
+  }
+}
+
+// A creep: the wheels roll at 0.3 mm/s for the first 30 s of the log, then stand still for 15 s
+// (a rover inching forward — or an encoder drifting — under the wheel detector's 2 mm/s and with
+// no rate the gyro can see). The trim cannot cut it: it trims only edges that border motion, and
+// this run borders the log's ends. Without the χ² rest test creep and rest are one rest window;
+// with it the creep is refused (and reported) and the rest keeps a window holding at most a
+// sliver of the creep.
+TEST(EstSegmentation, CreepingIsNeverRest) {
+  const auto data = std::filesystem::path(testing::sourceDir()) / "datasets";
+  sim::Scenario sc = sim::loadScenario("multi-stop", data);
+  sim::Leg rest = sc.legs[0];
+  rest.duration_s = 45;
+  sc.legs = {rest};
+  const double creep_end = 30.0, speed = 3e-4;
+  for (const uint64_t seed : {1, 2, 3}) {
+    sim::Simulation sim = sim::simulate(sc, data / "rovers" / "rocky7", seed);
+    io::Stream& j = sim.log.joints;
+    for (Eigen::Index k = 0; k < j.size(); ++k) {
+      for (int i = 0; i < rover::kNumWheels; ++i) {
+        j.values(k, rover::kPsi1 + i) +=
+            speed * std::min(j.t[k] - creep_end, 0.0) / sim.log.geometry.wheels[i].radius;
+      }
+    }
+    const Segmentation seg = segment(sim.log);
+    SegmentationOptions untested;
+    untested.rest_test_probability = 0;
+    const Segmentation before = segment(sim.log, untested);
+    ASSERT_EQ(before.rests.size(), 1u);
+    EXPECT_LT(before.rests[0].t_start, 1.0) << "the creep was rest without the test";
+    ASSERT_EQ(seg.rests.size(), 1u) << "seed " << seed;
+    const RestWindow& w = seg.rests[0];
+    // At most a second of creep (0.3 mm) inside the window, and at least half the rest kept.
+    EXPECT_GE(w.t_start, creep_end - 1.0) << "seed " << seed;
+    EXPECT_LE(w.t_start, creep_end + 7.5) << "seed " << seed;
+    EXPECT_EQ(w.rest_dof, 7);
+    ASSERT_FALSE(seg.refused_rests.empty());
+    EXPECT_LT(seg.refused_rests.front().t_start, 1.0);
+    EXPECT_GT(seg.refused_rests.front().chi2, seg.refused_rests.front().threshold);
+  }
+}
+
+// The test refuses no true rest: every window of the multi-stop-like fixture passes it (its
+// statistic is below the quantile), and the bundled straight-1m log keeps both its windows.
+TEST(EstSegmentation, RestTestKeepsTrueRests) {
+  const Fixture& f = fixture();
+  EXPECT_TRUE(f.seg.refused_rests.empty());
+  const double threshold = chiSquareQuantile(0.9999, 7);
+  for (const RestWindow& w : f.seg.rests) {
+    EXPECT_EQ(w.rest_dof, 7);  // heading gyro + six wheels
+    EXPECT_LE(w.rest_chi2, threshold);
   }
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "traverse/estimators/ekf.h"  // chiSquareQuantile
 #include "traverse/rover/joint_rates.h"
 #include "traverse/rover/rover_geometry.h"
 
@@ -219,9 +220,10 @@ void snapMotionEnds(const io::Stream& g, const std::vector<unsigned char>& wheel
 /// wheel travel are consistent with rest at the declared noise. The reference is the run's core
 /// (its middle half): its mean gyro reading b̂ is the bias, its mean wheel angles the wheels'
 /// rest position. From the core outward, U(q) = Σ_{k=q}^{core−1} (ω_k − b̂) Δt is a random walk
-/// at rest (variance m σ_g² Δt² + m² Δt² σ_b̂², m samples), and V(q) = mean_i r_i (ψ_i(q) −
-/// ψ̄_i,core) is white (variance r̄² σ_ψ² (1 + 1/n_core) / n_wheels). Walking outward, the first
-/// sample at which either statistic (any gyro axis) exceeds `rest_trim_sigma` standard
+/// at rest (variance m σ_g² Δt² + m² Δt² σ_b̂², m samples), and each wheel's V_i(q) = ψ_i(q) −
+/// ψ̄_i,core is white (variance σ_ψ² (1 + 1/n_core); each wheel on its own, since a turn in place
+/// rolls the two sides in opposite senses and leaves their mean still). Walking outward, the first
+/// sample at which either statistic (any gyro axis, any wheel) exceeds `rest_trim_sigma` standard
 /// deviations and everything beyond it become motion: a slow start or stop whose rate stays
 /// under the transient detector's threshold still turns a measurable angle or rolls a
 /// measurable distance. Repeated (at most three times) with the core of the shortened run.
@@ -237,17 +239,12 @@ void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
   constexpr double kMinNoise = 1e-5;  // rad/s per gyro sample, rad per wheel angle
   const double sg2 = std::pow(std::max(log.config.gyro.noise_rad_s, kMinNoise), 2);
   const double thr2 = o.rest_trim_sigma * o.rest_trim_sigma;
-  double radius = 0;
-  for (int i = 0; i < rover::kNumWheels; ++i) radius += log.geometry.wheels[i].radius;
-  radius /= rover::kNumWheels;
-  const double sw2 = std::pow(std::max(log.config.joints.wheel_noise_rad, kMinNoise), 2) * radius *
-                     radius / rover::kNumWheels;
-  // Mean rolled distance of the wheels at joint sample m.
-  auto travel = [&](Eigen::Index m) {
-    double d = 0;
-    for (int i = 0; i < rover::kNumWheels; ++i)
-      d += log.geometry.wheels[i].radius * j.values(m, rover::kPsi1 + i);
-    return d / rover::kNumWheels;
+  // Each wheel on its own (a turn in place moves the wheels in opposite senses, so their mean
+  // stays put): its angle's deviation from the core's mean angle, variance σ_ψ² (1 + 1/n_core).
+  const double sw2 = std::pow(std::max(log.config.joints.wheel_noise_rad, kMinNoise), 2);
+  constexpr auto kWheels = static_cast<Eigen::Index>(rover::kNumWheels);
+  const auto wheel_angles = [&](Eigen::Index m) {
+    return j.values.row(m).segment<kWheels>(rover::kPsi1).transpose();
   };
   for (Eigen::Index k = 0; k < n;) {
     if (!rest[static_cast<size_t>(k)]) {
@@ -264,11 +261,10 @@ void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
       const Eigen::Index c0 = a + len / 4, c1 = b - len / 4;  // the core
       const double nc = static_cast<double>(c1 - c0 + 1);
       const Eigen::RowVectorXd bias = g.values.middleRows(c0, c1 - c0 + 1).colwise().mean();
-      // Wheels: the core's mean rolled distance.
+      // Wheels: the core's mean angle of each.
       const Eigen::Index j0 = nearest(j.t, g.t[c0]), j1 = nearest(j.t, g.t[c1]);
-      double ref = 0;
-      for (Eigen::Index m = j0; m <= j1; ++m) ref += travel(m);
-      ref /= static_cast<double>(j1 - j0 + 1);
+      const Eigen::Matrix<double, kWheels, 1> ref =
+          j.values.middleRows(j0, j1 - j0 + 1).middleCols<kWheels>(rover::kPsi1).colwise().mean();
       const double vw = sw2 * (1.0 + 1.0 / static_cast<double>(j1 - j0 + 1));
       // Outward from the core; returns the innermost index (towards the edge) still consistent.
       auto scan = [&](Eigen::Index from, Eigen::Index to, int step) {
@@ -278,8 +274,8 @@ void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
         for (Eigen::Index q = from; q != to - step; q -= step) {
           sum += g.values.row(q) - bias, m += 1;
           const double var = m * sg2 + m * m * sg2 / nc;
-          const double d = travel(nearest(j.t, g.t[q])) - ref;
-          if (sum.cwiseAbs2().maxCoeff() > thr2 * var || d * d > thr2 * vw) {
+          const double d2 = (wheel_angles(nearest(j.t, g.t[q])) - ref).cwiseAbs2().maxCoeff();
+          if (sum.cwiseAbs2().maxCoeff() > thr2 * var || d2 > thr2 * vw) {
             keep = q + step;
             break;
           }
@@ -296,6 +292,105 @@ void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
     k = b0 + 1;
   }
 }
+
+namespace {
+
+struct RestStatistic {
+  double chi2 = 0.0;
+  int dof = 0;
+};
+
+/// The χ² rest statistic of gyro samples a..b (testRestRuns says what it is).
+RestStatistic restStatistic(const io::TraverseLog& log, Eigen::Index a, Eigen::Index b) {
+  const io::Stream& g = log.gyro;
+  const io::Stream& j = log.joints;
+  constexpr double kMinNoise = 1e-5;  // as trimRestRuns: a noise-free log declares 0
+  const double sg2 = std::pow(std::max(log.config.gyro.noise_rad_s, kMinNoise), 2);
+  const double qb2 = std::pow(log.config.gyro.bias_random_walk_rad_s_per_sqrt_s, 2);
+  const double sw2 = std::pow(std::max(log.config.joints.wheel_noise_rad, kMinNoise), 2);
+  // z² of the least-squares slope of column c of rows a0..b0 against t.
+  auto slope_z2 = [](const Eigen::VectorXd& t, const Eigen::MatrixXd& values, Eigen::Index c,
+                     Eigen::Index a0, Eigen::Index b0, double noise_var, double extra_var) {
+    if (b0 - a0 < 2) return 0.0;
+    const double t_mean = t.segment(a0, b0 - a0 + 1).mean();
+    const double y_mean = values.col(c).segment(a0, b0 - a0 + 1).mean();
+    double stt = 0, sty = 0;
+    for (Eigen::Index k = a0; k <= b0; ++k) {
+      stt += (t[k] - t_mean) * (t[k] - t_mean);
+      sty += (t[k] - t_mean) * (values(k, c) - y_mean);
+    }
+    if (stt <= 0) return 0.0;
+    const double slope = sty / stt;
+    return slope * slope / (noise_var / stt + extra_var);
+  };
+  RestStatistic s;
+  const double span = std::max(g.t[b] - g.t[a], 1e-9);
+  for (Eigen::Index c = 0; c < g.values.cols(); ++c)
+    s.chi2 += slope_z2(g.t, g.values, c, a, b, sg2, 1.2 * qb2 / span);
+  // Wheels: each wheel's travel between the first and last quarter of the run (means), with
+  // variance 2σ_ψ² — not divided by the sample count: an encoder's quantisation error at rest
+  // is one constant, not white, so averaging does not shrink it.
+  const Eigen::Index j0 = nearest(j.t, g.t[a]), j1 = nearest(j.t, g.t[b]);
+  const Eigen::Index quarter = std::max<Eigen::Index>((j1 - j0 + 1) / 4, 1);
+  for (int i = 0; i < rover::kNumWheels; ++i) {
+    const Eigen::Index c = rover::kPsi1 + i;
+    const double d = j.values.col(c).segment(j1 - quarter + 1, quarter).mean() -
+                     j.values.col(c).segment(j0, quarter).mean();
+    s.chi2 += d * d / (2 * sw2);
+  }
+  s.dof = static_cast<int>(g.values.cols()) + rover::kNumWheels;
+  return s;
+}
+
+/// χ² rest test of each rest run (gyro sample indices, rest = 1) as a whole. At rest every
+/// measured gyro axis is its bias plus white noise, so its least-squares slope over the run is
+/// zero within σ_g² / Σ(t − t̄)², plus 1.2 q_b² / T for the bias random walk over the run's length
+/// T (the slope of a Brownian path of density q_b² fitted over T); and every wheel stands still,
+/// so the difference of its mean angle over the run's last and first quarters is zero within
+/// 2σ_ψ² (not divided by the sample count: an encoder's quantisation error at rest is one
+/// constant, not white noise). A run that creeps — a slow, steady roll or turn that neither the
+/// transient detector nor the trim can see, because no edge stands out or the run borders the
+/// log's ends — fails it. Σ z² over the measured axes and the wheels is χ² with that many degrees
+/// of freedom, compared with its quantile at `rest_test_probability`. A run that fails is halved
+/// and each half tested again, down to `min_rest_s`: the parts that pass stay rest (a creep next
+/// to a true rest leaves the rest), the others become motion and are recorded in `refused`.
+/// Runs shorter than `min_rest_s` are left to the merge that follows.
+void testRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
+                  std::vector<unsigned char>& rest, std::vector<RefusedRest>& refused) {
+  if (o.rest_test_probability <= 0) return;
+  const io::Stream& g = log.gyro;
+  const auto n = static_cast<Eigen::Index>(rest.size());
+  const int dof = static_cast<int>(g.values.cols()) + rover::kNumWheels;
+  const double threshold = chiSquareQuantile(o.rest_test_probability, dof);
+  auto refuse = [&](Eigen::Index a, Eigen::Index b, double chi2) {
+    std::fill(rest.begin() + a, rest.begin() + b + 1, 0);
+    if (a > 0 && !refused.empty() && refused.back().t_end == g.t[a - 1]) {  // adjacent halves
+      refused.back().t_end = g.t[b], refused.back().chi2 = std::max(refused.back().chi2, chi2);
+    } else {
+      refused.push_back({g.t[a], g.t[b], chi2, threshold, dof});
+    }
+  };
+  auto check = [&](auto& self, Eigen::Index a, Eigen::Index b) -> void {
+    const RestStatistic s = restStatistic(log, a, b);
+    if (s.chi2 <= threshold) return;
+    if (g.t[b] - g.t[a] < 2 * o.min_rest_s) return refuse(a, b, s.chi2);
+    const Eigen::Index mid = a + (b - a) / 2;
+    self(self, a, mid);
+    self(self, mid + 1, b);
+  };
+  for (Eigen::Index k = 0; k < n;) {
+    if (!rest[static_cast<size_t>(k)]) {
+      ++k;
+      continue;
+    }
+    Eigen::Index b = k;
+    while (b + 1 < n && rest[static_cast<size_t>(b + 1)]) ++b;
+    if (g.t[b] - g.t[k] >= o.min_rest_s) check(check, k, b);
+    k = b + 1;
+  }
+}
+
+}  // namespace
 
 Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
   Segmentation seg;
@@ -314,6 +409,7 @@ Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
   seg.gyro_rest = hysteresis(active, o);
   snapMotionEnds(g, wheels, o, seg.gyro_rest);
   trimRestRuns(log, o, seg.gyro_rest);
+  testRestRuns(log, o, seg.gyro_rest, seg.refused_rests);
   // Runs of equal mode → segments; short rests are merged into the motion around them.
   const auto n = static_cast<size_t>(g.size());
   for (size_t k = 0; k < n;) {
@@ -344,6 +440,9 @@ Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
     RestWindow w;
     w.t_start = s.t_start, w.t_end = s.t_end;
     restMeasurements(log, o, w);
+    const Eigen::Index a = nearest(g.t, w.t_start), b = nearest(g.t, w.t_end);
+    const RestStatistic stat = restStatistic(log, a, b);
+    w.rest_chi2 = stat.chi2, w.rest_dof = stat.dof;
     s.rest_index = static_cast<int>(seg.rests.size());
     seg.rests.push_back(w);
   }

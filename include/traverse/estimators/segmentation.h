@@ -30,6 +30,19 @@ struct SegmentationOptions {
   /// (bias-corrected gyro) and wheel travel, counted from the window's core outward, stay within
   /// this many σ of the declared gyro and wheel noise (0: off). See trimRestRuns.
   double rest_trim_sigma = 4.5;
+  /// Every rest run that survives the trim is tested once more as a whole against the declared
+  /// noise: the least-squares slope of each measured gyro axis and each wheel's travel over the
+  /// run (χ² with one degree of freedom per axis and wheel). A run whose statistic exceeds the
+  /// χ² quantile at this probability is halved and retested; what fails is not rest — it becomes
+  /// motion and is never used as a zero-rate / zero-velocity constraint (0: no test).
+  double rest_test_probability = 0.9999;
+};
+
+/// A rest run the χ² test refused (it became motion): its span, statistic and degrees of freedom.
+struct RefusedRest {
+  double t_start = 0.0, t_end = 0.0;
+  double chi2 = 0.0, threshold = 0.0;
+  int dof = 0;
 };
 
 /// What one rest window measures.
@@ -48,6 +61,9 @@ struct RestWindow {
   bool has_sun = false;  ///< valid sun readings in the window
   Vec2d mean_sun = Vec2d::Zero();
   int sun_samples = 0;
+  /// The χ² consistency statistic the window passed (testRestRuns) and its degrees of freedom.
+  double rest_chi2 = 0.0;
+  int rest_dof = 0;
 };
 
 struct Segment {
@@ -60,8 +76,9 @@ struct Segment {
 struct Segmentation {
   std::vector<Segment> segments;  ///< alternating rest / motion, covering the log
   std::vector<RestWindow> rests;
-  Eigen::VectorXd gyro_t;                ///< gyro sample times
-  std::vector<unsigned char> gyro_rest;  ///< per gyro sample: 1 = rest
+  std::vector<RefusedRest> refused_rests;  ///< runs the χ² rest test turned into motion
+  Eigen::VectorXd gyro_t;                  ///< gyro sample times
+  std::vector<unsigned char> gyro_rest;    ///< per gyro sample: 1 = rest
   /// True if t lies inside a rest segment.
   bool atRest(double t) const;
 };
