@@ -95,7 +95,7 @@ est::Trajectory trajectoryOf(const std::vector<Pose>& poses, const TruthGroups& 
     n.q_site_body = a.q;
     n.xi.fill(g.xi.value_or(0.0));
     n.bias = g.bias.value_or(Vec3d::Zero());
-    if (covariance) n.covariance = 0.01 * Mat6d::Identity();
+    if (covariance) n.covariance = 0.01 * Mat6d::Identity(), n.bias_sigma.setConstant(1e-3);
     tr.nodes.push_back(n);
   }
   return tr;
@@ -173,12 +173,44 @@ TEST(EvalMetrics, IdenticalEstimateHasZeroErrorsAndEveryKey) {
   const auto poses = straight(0.4, 6.0, 0.5);
   const Metrics m =
       evaluate(trajectoryOf(poses, groups, true), TruthTrajectory(truthStream(poses, groups)));
-  EXPECT_THAT(m.keys(), ElementsAreArray(kMetricKeys.begin(), kMetricKeys.end()));
+  // Every key but the rest windows' (restBiasConsistency, from a segmentation).
+  std::vector<std::string_view> keys(kMetricKeys.begin(), kMetricKeys.end());
+  std::erase(keys, "rest_bias_z_within_3sigma_pct");
+  EXPECT_THAT(m.keys(), ElementsAreArray(keys));
   for (const auto& [key, value] : m.entries) {
-    if (key == "nees_dof") continue;
+    if (key == "nees_dof" || key == "bias_z_within_3sigma_pct") continue;
     EXPECT_NEAR(value, 0.0, kTol) << key;
   }
   EXPECT_EQ(metric(m, "nees_dof"), 3.0);
+  EXPECT_EQ(metric(m, "bias_z_within_3sigma_pct"), 100.0);
+}
+
+// Hand-checked: the estimate climbs 1 cm per metre above a flat truth, so the final vertical
+// error after 8 m is 8 cm; the bias is off by 3.5 mrad/s on nodes 0..3 and by 0.5 mrad/s on the
+// rest, with σ 1 mrad/s: 5 of the 9 nodes are within 3σ.
+TEST(EvalMetrics, FinalVerticalErrorAndBiasConsistency) {
+  const TruthGroups groups{std::nullopt, Vec3d(0, 0, 0.01), false};
+  const auto poses = straight(0.0, 8.0, 1.0);  // 9 nodes
+  est::Trajectory tr = trajectoryOf(poses, groups);
+  for (size_t k = 0; k < tr.nodes.size(); ++k) {
+    tr.nodes[k].p_site.z() += 0.01 * static_cast<double>(k);
+    tr.nodes[k].bias.z() += k < 4 ? 0.0035 : 0.0005;
+    tr.nodes[k].bias_sigma.z() = 0.001;
+  }
+  const Metrics m = evaluate(tr, TruthTrajectory(truthStream(poses, groups)));
+  EXPECT_NEAR(metric(m, "final_vertical_error_m"), 0.08, kTol);
+  EXPECT_NEAR(metric(m, "bias_z_within_3sigma_pct"), 100.0 * 5 / 9, kTol);
+  // Rest windows: 1 mrad/s off at σ 0.2 mrad/s (5σ) and at σ 0.5 mrad/s (2σ); one heading-less.
+  std::vector<est::RestWindow> rests(3);
+  rests[0].t_start = 0, rests[0].t_end = 2, rests[0].bias.z() = 0.011,
+  rests[0].bias_sigma.z() = 2e-4;
+  rests[1].t_start = 4, rests[1].t_end = 6, rests[1].bias.z() = 0.009,
+  rests[1].bias_sigma.z() = 5e-4;
+  rests[2].bias_axes[2] = false;
+  const auto [within, windows] =
+      restBiasConsistency(rests, TruthTrajectory(truthStream(poses, groups)));
+  EXPECT_EQ(within, 1);
+  EXPECT_EQ(windows, 2);
 }
 
 TEST(EvalMetrics, ConstantOffsetIsRemovedByInitialTranslation) {
@@ -316,10 +348,11 @@ TEST(EvalMetrics, BiasAndContactAngleErrors) {
 TEST(EvalMetrics, MissingTruthGroupsAndCovarianceOmitKeys) {
   const auto poses = straight(0.0, 5.0, 1.0);
   const Metrics m = evaluate(trajectoryOf(poses), TruthTrajectory(truthStream(poses)));
-  EXPECT_THAT(m.keys(),
-              ElementsAre("distance_error_pct", "final_position_error_m", "final_error_pct_of_path",
-                          "max_cross_track_m", "position_rmse_m", "roll_rmse_deg", "pitch_rmse_deg",
-                          "yaw_rmse_deg", "ate_posyaw_m", "rpe_pct_per_m"));
+  EXPECT_THAT(
+      m.keys(),
+      ElementsAre("distance_error_pct", "final_position_error_m", "final_error_pct_of_path",
+                  "max_cross_track_m", "position_rmse_m", "roll_rmse_deg", "pitch_rmse_deg",
+                  "yaw_rmse_deg", "ate_posyaw_m", "rpe_pct_per_m", "final_vertical_error_m"));
   EXPECT_TRUE(evaluate(est::Trajectory{}, TruthTrajectory(truthStream(poses))).entries.empty());
 }
 

@@ -34,8 +34,11 @@ eval::MetricsReport oneRun(const sim::Scenario& sc, const std::filesystem::path&
   const pipeline::Estimates e = pipeline::estimate(s.log, config);
   std::vector<est::Trajectory> trajectories{e.dr, e.ekf.trajectory};
   if (e.smoothed) trajectories.push_back(e.smoothed->trajectory);
-  return eval::evaluateAll(sc.name + "#" + std::to_string(seed), trajectories,
-                           eval::TruthTrajectory(*s.log.truth));
+  const eval::TruthTrajectory truth(*s.log.truth);
+  eval::MetricsReport report =
+      eval::evaluateAll(sc.name + "#" + std::to_string(seed), trajectories, truth);
+  setRestBiasMetric(report, e.segmentation, truth);
+  return report;
 }
 
 }  // namespace

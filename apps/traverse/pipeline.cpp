@@ -102,6 +102,16 @@ pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   return c;
 }
 
+void setRestBiasMetric(eval::MetricsReport& report, const est::Segmentation& seg,
+                       const eval::TruthTrajectory& truth) {
+  const auto [within, windows] = eval::restBiasConsistency(seg.rests, truth);
+  if (windows == 0) return;
+  for (eval::EstimatorMetrics& em : report.estimators) {
+    if (em.estimator == "dr")
+      em.metrics.set("rest_bias_z_within_3sigma_pct", 100.0 * within / windows);
+  }
+}
+
 pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global,
                                 bool smooth) {
   io::ReadReport report;
@@ -128,8 +138,9 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   if (log.truth) {  // evaluation when the log has truth (outputs.md)
     const eval::TruthTrajectory truth(*log.truth);
     const auto name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
-    const eval::MetricsReport report =
+    eval::MetricsReport report =
         eval::evaluateAll(name.empty() ? o.log_dir : name, trajectories, truth);
+    setRestBiasMetric(report, e.segmentation, truth);
     eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
     if (!global.quiet) std::cout << eval::formatMetricsTable(report);
   }

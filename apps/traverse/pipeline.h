@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "traverse/eval/metrics.h"
 #include "traverse/pipeline/pipeline.h"
 
 namespace traverse::app {
@@ -32,6 +33,11 @@ void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);
 void addSmootherOptions(CLI::App& cmd, PipelineOptions& options);
 pipeline::PipelineConfig pipelineConfig(const PipelineOptions& options);
 /// Reads the log, estimates, writes OUTDIR; returns what it estimated.
+/// Puts rest_bias_z_within_3sigma_pct (eval::restBiasConsistency) on the "dr" estimator, whose
+/// bias is the rest windows' own measurement.
+void setRestBiasMetric(eval::MetricsReport& report, const est::Segmentation& seg,
+                       const eval::TruthTrajectory& truth);
+
 pipeline::Estimates runPipeline(const PipelineOptions& options, const GlobalOptions& global,
                                 bool smooth);
 

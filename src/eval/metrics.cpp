@@ -56,6 +56,7 @@ void addPositionMetrics(Metrics& m, const NodePairs& n, double path_length) {
   }
   const double final_error = (n.p_hat[last] - n.p[last]).norm();
   m.set("final_position_error_m", final_error);
+  m.set("final_vertical_error_m", std::abs(n.p_hat[last].z() - n.p[last].z()));
   if (path_length > kMinLength) m.set("final_error_pct_of_path", final_error / path_length * 100.0);
   double sum_sq = 0.0;
   for (std::size_t k = 0; k < n.size(); ++k) sum_sq += (n.p_hat[k] - n.p[k]).squaredNorm();
@@ -111,6 +112,15 @@ void addStateMetrics(Metrics& m, const est::Trajectory& tr, const TruthTrajector
       sum_abs += std::abs(node.bias.z() - truth.bias(node.t).z());
     }
     m.set("bias_z_error_dps", sum_abs / static_cast<double>(count) * kRadToDeg);
+    std::size_t within = 0, with_sigma = 0;
+    for (const est::TrajectoryNode& node : tr.nodes) {
+      if (!(node.bias_sigma.z() > 0)) continue;
+      ++with_sigma;
+      within += std::abs(node.bias.z() - truth.bias(node.t).z()) <= 3 * node.bias_sigma.z();
+    }
+    if (with_sigma > 0)
+      m.set("bias_z_within_3sigma_pct",
+            100.0 * static_cast<double>(within) / static_cast<double>(with_sigma));
   }
 }
 
@@ -199,6 +209,19 @@ std::optional<double> Metrics::get(std::string_view key) const {
 std::vector<std::string> Metrics::keys() const {
   std::vector<std::string> out;
   for (const auto& entry : entries) out.push_back(entry.first);
+  return out;
+}
+
+std::pair<int, int> restBiasConsistency(const std::vector<est::RestWindow>& rests,
+                                        const TruthTrajectory& truth) {
+  std::pair<int, int> out{0, 0};
+  if (!truth.hasBias()) return out;
+  for (const est::RestWindow& w : rests) {
+    if (!w.bias_axes[2] || !(w.bias_sigma.z() > 0)) continue;
+    const double e = w.bias.z() - truth.bias(0.5 * (w.t_start + w.t_end)).z();
+    out.first += std::abs(e) <= 3 * w.bias_sigma.z();
+    ++out.second;
+  }
   return out;
 }
 

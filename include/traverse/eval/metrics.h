@@ -17,6 +17,13 @@
 //    so3::rollPitchYaw.
 //  - contact_angle_rmse_deg: RMSE over nodes and the six wheels of ξ̂ − ξ (truth has xi).
 //  - bias_z_error_dps = mean_k |b̂_z − b_z| in deg/s (truth has bz).
+//  - bias_z_within_3sigma_pct: % of nodes with |b̂_z − b_z| ≤ 3σ_bz (nodes with σ_bz > 0; the
+//    smoother's segment bias is compared at every node of its segment, so segments count by
+//    their length).
+//  - rest_bias_z_within_3sigma_pct (`restBiasConsistency`, set on "dr" by the bench and the
+//    CLI: dead reckoning's bias is the rest windows' own measurement): % of rest windows whose
+//    mean-gyro bias is within 3σ of the true b_z at the window's middle.
+//  - final_vertical_error_m = |ẑ_N − z(t_N)| (after the initial translation).
 //  - ate_posyaw_m: RMSE after the best translation + yaw alignment (eval/alignment.h).
 //  - rpe_pct_per_m (OpenVINS-style, by distance travelled): segment d = rpe_segment_m, or
 //    rpe_short_fraction × L_path when L_path < rpe_short_path_m; for each node i the first
@@ -40,19 +47,33 @@
 #include <utility>
 #include <vector>
 
+#include "traverse/estimators/segmentation.h"
 #include "traverse/estimators/trajectory.h"
 #include "traverse/eval/truth.h"
 
 namespace traverse::eval {
 
 /// Every metric key of outputs.md, in the order metrics.json lists them.
-inline constexpr std::array<std::string_view, 17> kMetricKeys = {
-    "distance_error_pct",       "final_position_error_m", "final_error_pct_of_path",
-    "max_cross_track_m",        "position_rmse_m",        "roll_rmse_deg",
-    "pitch_rmse_deg",           "yaw_rmse_deg",           "contact_angle_rmse_deg",
-    "bias_z_error_dps",         "ate_posyaw_m",           "rpe_pct_per_m",
-    "nees_position_mean",       "nees_attitude_mean",     "nees_dof",
-    "position_rmse_over_sigma", "yaw_rmse_over_sigma"};
+inline constexpr std::array<std::string_view, 20> kMetricKeys = {"distance_error_pct",
+                                                                 "final_position_error_m",
+                                                                 "final_error_pct_of_path",
+                                                                 "max_cross_track_m",
+                                                                 "position_rmse_m",
+                                                                 "roll_rmse_deg",
+                                                                 "pitch_rmse_deg",
+                                                                 "yaw_rmse_deg",
+                                                                 "contact_angle_rmse_deg",
+                                                                 "bias_z_error_dps",
+                                                                 "ate_posyaw_m",
+                                                                 "rpe_pct_per_m",
+                                                                 "nees_position_mean",
+                                                                 "nees_attitude_mean",
+                                                                 "nees_dof",
+                                                                 "position_rmse_over_sigma",
+                                                                 "yaw_rmse_over_sigma",
+                                                                 "final_vertical_error_m",
+                                                                 "bias_z_within_3sigma_pct",
+                                                                 "rest_bias_z_within_3sigma_pct"};
 
 /// Metric key → value, in insertion order (evaluate returns them in kMetricKeys order).
 struct Metrics {
@@ -76,6 +97,11 @@ struct EvaluateOptions {
 /// The metrics of one trajectory (conventions above). An empty trajectory gives no metrics.
 Metrics evaluate(const est::Trajectory& trajectory, const TruthTrajectory& truth,
                  const EvaluateOptions& options = {});
+
+/// Rest windows whose bias measurement (mean gyro ± standard error) is within 3σ of the true
+/// z bias at the window's middle: {within, windows}. Windows without a z measurement are skipped.
+std::pair<int, int> restBiasConsistency(const std::vector<est::RestWindow>& rests,
+                                        const TruthTrajectory& truth);
 
 /// metrics.json's name of an estimator: the trajectory names "dr", "ekf" are kept, "smoothed"
 /// becomes "smoother".
