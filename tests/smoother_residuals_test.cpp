@@ -842,18 +842,18 @@ TEST(SmootherResidualMarkovProcess, HandCheckedAndRandomWalkLimit) {
   const double dt = 0.1, qd = 0.0025;
   const MarkovProcessResidual<1> ou(dt, V1(-0.5), V1(qd), V1(0.1), V1(0.2));
   const double phi = std::exp(-0.05), var = qd * (1 - std::exp(-0.1)) / 1.0;
-  EXPECT_NEAR(ou.phi()[0], phi, 1e-15);
-  EXPECT_NEAR(ou.sqrtInformation()[0], 1 / std::sqrt(var), 1e-9);
+  EXPECT_NEAR(ou.functor().phi()[0], phi, 1e-15);
+  EXPECT_NEAR(ou.functor().sqrtInformation()[0], 1 / std::sqrt(var), 1e-9);
   EXPECT_NEAR(evaluate(ou, {{0.3}, {0.5}})[0], (0.3 - phi * 0.2) / std::sqrt(var), 1e-9);
 
   const MarkovProcessResidual<1> rw(dt, V1(0.0), V1(qd), V1(0.0), V1(0.0));
-  EXPECT_EQ(rw.phi()[0], 1.0);
-  EXPECT_NEAR(rw.sqrtInformation()[0], 1 / std::sqrt(qd * dt), 1e-12);
+  EXPECT_EQ(rw.functor().phi()[0], 1.0);
+  EXPECT_NEAR(rw.functor().sqrtInformation()[0], 1 / std::sqrt(qd * dt), 1e-12);
   EXPECT_NEAR(evaluate(rw, {{0.3}, {0.5}})[0], 0.2 / std::sqrt(qd * dt), 1e-10);
   for (double a : {-1e-3, -1e-5, -1e-8}) {
     const MarkovProcessResidual<1> near(dt, V1(a), V1(qd), V1(0.0), V1(0.0));
     const double expected_var = qd * dt * (1 + a * dt);  // to first order in a Δt
-    EXPECT_NEAR(std::pow(near.sqrtInformation()[0], -2) / expected_var, 1.0,
+    EXPECT_NEAR(std::pow(near.functor().sqrtInformation()[0], -2) / expected_var, 1.0,
                 std::max(1e-6, 2 * (a * dt) * (a * dt)))
         << "a = " << a;
   }
