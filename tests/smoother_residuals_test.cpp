@@ -8,13 +8,20 @@
 //    parameters, 4 per quaternion) times PlusJacobian against central differences of the
 //    residual in the tangent space (q ⊗ Exp(δθ), vectors additive) at random plausible states,
 //    through one generic helper; and a value worked out by hand.
+//  - The constraints that add them (residual_collector.h): the blocks each entry takes, cost
+//    functions shared exactly when the functors are equal (CostMemo), and the collector's cost
+//    against Ceres' own evaluation of the same problem.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <ceres/cost_function.h>
+#include <ceres/loss_function.h>
+#include <ceres/problem.h>
 
 #include "support/jacobian_check.h"
 #include "traverse/io/rover_description.h"
@@ -23,6 +30,7 @@
 #include "traverse/sensors/gravity.h"
 #include "traverse/sensors/sun_sensor.h"
 #include "traverse/smoother/body_quaternion_manifold.h"
+#include "traverse/smoother/residual_collector.h"
 #include "traverse/smoother/residuals/accel_velocity_process.h"
 #include "traverse/smoother/residuals/attitude_process.h"
 #include "traverse/smoother/residuals/gravity_residual.h"
@@ -842,18 +850,18 @@ TEST(SmootherResidualMarkovProcess, HandCheckedAndRandomWalkLimit) {
   const double dt = 0.1, qd = 0.0025;
   const MarkovProcessResidual<1> ou(dt, V1(-0.5), V1(qd), V1(0.1), V1(0.2));
   const double phi = std::exp(-0.05), var = qd * (1 - std::exp(-0.1)) / 1.0;
-  EXPECT_NEAR(ou.phi()[0], phi, 1e-15);
-  EXPECT_NEAR(ou.sqrtInformation()[0], 1 / std::sqrt(var), 1e-9);
+  EXPECT_NEAR(ou.functor().phi()[0], phi, 1e-15);
+  EXPECT_NEAR(ou.functor().sqrtInformation()[0], 1 / std::sqrt(var), 1e-9);
   EXPECT_NEAR(evaluate(ou, {{0.3}, {0.5}})[0], (0.3 - phi * 0.2) / std::sqrt(var), 1e-9);
 
   const MarkovProcessResidual<1> rw(dt, V1(0.0), V1(qd), V1(0.0), V1(0.0));
-  EXPECT_EQ(rw.phi()[0], 1.0);
-  EXPECT_NEAR(rw.sqrtInformation()[0], 1 / std::sqrt(qd * dt), 1e-12);
+  EXPECT_EQ(rw.functor().phi()[0], 1.0);
+  EXPECT_NEAR(rw.functor().sqrtInformation()[0], 1 / std::sqrt(qd * dt), 1e-12);
   EXPECT_NEAR(evaluate(rw, {{0.3}, {0.5}})[0], 0.2 / std::sqrt(qd * dt), 1e-10);
   for (double a : {-1e-3, -1e-5, -1e-8}) {
     const MarkovProcessResidual<1> near(dt, V1(a), V1(qd), V1(0.0), V1(0.0));
     const double expected_var = qd * dt * (1 + a * dt);  // to first order in a Δt
-    EXPECT_NEAR(std::pow(near.sqrtInformation()[0], -2) / expected_var, 1.0,
+    EXPECT_NEAR(std::pow(near.functor().sqrtInformation()[0], -2) / expected_var, 1.0,
                 std::max(1e-6, 2 * (a * dt) * (a * dt)))
         << "a = " << a;
   }
@@ -926,6 +934,90 @@ TEST(SmootherWhitening, SingularCovarianceIsANumericalError) {
   }
   const Eigen::Matrix2d cov = Vec2d(4.0, 0.25).asDiagonal();  // hand-checked: diag(1/2, 2)
   EXPECT_TRUE(sqrtInformation<2>(cov, "x").isApprox(Vec2d(0.5, 2.0).asDiagonal().toDenseMatrix()));
+}
+
+// ------------------------------------------------------------------------------------------
+// Constraints and the residual collector
+// ------------------------------------------------------------------------------------------
+
+TEST(SmootherResidualCollector, EqualFunctorsShareACostFunctionAndTheCostIsCeres) {
+  std::mt19937 rng(31);
+  struct Node {
+    double q[4], x[3], v[3], w[3], xi[6], b[3];
+  };
+  std::vector<Node> storage(3);
+  for (Node& n : storage) {
+    const Quatd q = randomUnitQuaternion(rng);
+    for (int i = 0; i < 4; ++i) n.q[i] = q.coeffs()[i];
+    for (double* a : {n.x, n.v, n.w, n.b}) Eigen::Map<Vec3d>{a} = randomVector<3>(rng, 0.1);
+    Eigen::Map<Vec6d>{n.xi} = randomVector<6>(rng, 0.1);
+  }
+  BodyQuaternionManifold manifold;
+  std::vector<NodeHandles> h(storage.size());
+  for (size_t k = 0; k < h.size(); ++k) {
+    using C = NodeColumns;
+    Node& n = storage[k];
+    const int node = static_cast<int>(k);
+    h[k] = {
+        {n.q, 4, {node, C::kAttitude, 3}, &manifold}, {n.x, 3, {node, C::kPosition, 3}, nullptr},
+        {n.v, 3, {node, C::kVelocity, 3}, nullptr},   {n.w, 3, {node, C::kRate, 3}, nullptr},
+        {n.xi, 6, {node, C::kContact, 6}, nullptr},   {n.b, 3, {node, C::kBias, 3}, nullptr}};
+  }
+  ceres::CauchyLoss loss(1.0);
+  ResidualCollector out;
+  CostMemo<AttitudeProcessResidual> attitude;
+  CostMemo<MarkovProcess<3>> rate;
+  std::array<CostMemo<MarkovComponent<6>>, rover::kNumWheels> contact;
+  const Vec3d info(100, 200, 300), cmd(0.01, 0.0, -0.02);
+  addAttitudeProcess(out, attitude, 0.05, info, h[0], h[1]);          // 0: new
+  addAttitudeProcess(out, attitude, 0.05, info, h[1], h[2]);          // 1: equal functor, shared
+  addAttitudeProcess(out, attitude, 0.06, info, h[1], h[2]);          // 2: Δt differs
+  addRateProcess(out, rate, 0.05, -1.0, 0.01, cmd, cmd, h[0], h[1]);  // 3: new
+  addRateProcess(out, rate, 0.05, -1.0, 0.01, cmd, cmd, h[1], h[2]);  // 4: shared
+  addRateProcess(out, rate, 0.05, -1.0, 0.01, cmd, Vec3d::Zero(), h[1], h[2]);  // 5: mean differs
+  addContactProcess(out, contact, 0.05, 2.0, 0.05, &loss, h[0], h[1]);  // 6–11: one per wheel
+  addContactProcess(out, contact, 0.05, 2.0, 0.05, &loss, h[1], h[2]);  // 12–17: shared per wheel
+  addGyroIncrement(out, 0.05, Vec3d(0.001, 0.0, 0.002), 0.003, 0.01, Vec3d(0, 0, 1), h[0], h[1]);
+
+  const std::vector<ResidualEntry>& e = out.entries();
+  ASSERT_EQ(e.size(), 19u);
+  EXPECT_EQ(e[1].f, e[0].f);
+  EXPECT_NE(e[2].f, e[1].f);
+  EXPECT_EQ(attitude.f, e[2].f);
+  EXPECT_EQ(e[4].f, e[3].f);
+  EXPECT_NE(e[5].f, e[4].f);
+  for (size_t i = 0; i < 6; ++i) {
+    EXPECT_EQ(e[12 + i].f, e[6 + i].f) << i;
+    if (i > 0) {
+      EXPECT_NE(e[6 + i].f, e[6].f) << i;  // each wheel its own component
+    }
+    EXPECT_EQ(e[6 + i].loss, &loss);
+  }
+  // Blocks in the functor's order, as handles of the nodes given.
+  EXPECT_EQ(e[1].num_blocks, 4);
+  EXPECT_EQ(e[1].blocks[0], &h[1].q);
+  EXPECT_EQ(e[1].blocks[1], &h[2].q);
+  EXPECT_EQ(e[1].blocks[2], &h[1].w);
+  EXPECT_EQ(e[1].blocks[3], &h[2].w);
+  EXPECT_EQ(e[18].num_blocks, 3);
+  EXPECT_EQ(e[18].blocks[2], &h[0].bias);
+  EXPECT_EQ(e[18].kind, std::string("gyro"));
+
+  ceres::Problem::Options po;
+  po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  for (const NodeHandles& n : h)
+    for (const BlockHandle* b : {&n.q, &n.x, &n.v, &n.w, &n.xi, &n.bias})
+      problem.AddParameterBlock(b->data, b->size, b->manifold);
+  out.addTo(problem);
+  EXPECT_EQ(problem.NumResidualBlocks(), 19);
+  double ceres_cost = 0.0;
+  problem.Evaluate(ceres::Problem::EvaluateOptions(), &ceres_cost, nullptr, nullptr, nullptr);
+  BlockEvaluator evaluator;
+  EXPECT_NEAR(out.cost(evaluator), ceres_cost, 1e-12 * ceres_cost);
+  EXPECT_GT(ceres_cost, 0.0);
 }
 
 }  // namespace

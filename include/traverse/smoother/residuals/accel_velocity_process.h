@@ -14,6 +14,7 @@
 #include <ceres/autodiff_cost_function.h>
 
 #include "traverse/sensors/accelerometer.h"
+#include "traverse/smoother/residual_collector.h"
 #include "traverse/smoother/residuals/interpolation.h"
 #include "traverse/smoother/residuals/midpoint_attitude_cost.h"
 
@@ -69,5 +70,17 @@ struct AccelVelocityProcessResidual {
   Vec3d accel, lever_arm;
   double gravity, sqrt_info;
 };
+
+/// Constraint (residual_collector.h): the accelerometer-driven velocity process between nodes k
+/// and k + 1, blocks q_k, q_{k+1}, v_k, v_{k+1}, ω_k, ω_{k+1}; σ² = q_a Δt + (10⁻⁶)², q_a = σ_a²
+/// T_a the readings' white-noise density.
+inline void addAccelVelocityProcess(ResidualCollector& out, double dt, const Vec3d& mean_accel_mps2,
+                                    const Vec3d& lever_arm_m, double gravity_mps2, double q_a,
+                                    const NodeHandles& k, const NodeHandles& k1) {
+  out.add("accel_velocity",
+          AccelVelocityProcessResidual::Create(dt, mean_accel_mps2, lever_arm_m, gravity_mps2,
+                                               1.0 / std::sqrt(q_a * dt + 1e-12)),
+          nullptr, k.q, k1.q, k.v, k1.v, k.w, k1.w);
+}
 
 }  // namespace traverse::smoother

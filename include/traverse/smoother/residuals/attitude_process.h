@@ -13,6 +13,7 @@
 #include <ceres/autodiff_cost_function.h>
 
 #include "traverse/core/so3.h"
+#include "traverse/smoother/residual_collector.h"
 
 namespace traverse::smoother {
 
@@ -33,13 +34,28 @@ struct AttitudeProcessResidual {
     return ((q_w * (dt * dt * dt / 12.0)).array() + floor_rad * floor_rad).rsqrt().matrix();
   }
 
-  static ceres::CostFunction* Create(double dt, const Vec3d& sqrt_info) {
+  static ceres::CostFunction* Create(const AttitudeProcessResidual& f) {
     return new ceres::AutoDiffCostFunction<AttitudeProcessResidual, 3, 4, 4, 3, 3>(
-        new AttitudeProcessResidual(dt, sqrt_info));
+        new AttitudeProcessResidual(f));
   }
+  static ceres::CostFunction* Create(double dt, const Vec3d& sqrt_info) {
+    return Create(AttitudeProcessResidual(dt, sqrt_info));
+  }
+
+  bool operator==(const AttitudeProcessResidual&) const = default;
 
   double dt;
   Vec3d sqrt_info;
 };
+
+/// Constraint (residual_collector.h): the attitude process between nodes k and k + 1, blocks
+/// q_k, q_{k+1}, ω_k, ω_{k+1}; sqrt_info from sqrtInfo, or the zero-rate σ over Δt inside a
+/// rest window. Consecutive equal ones share a cost function.
+inline void addAttitudeProcess(ResidualCollector& out, CostMemo<AttitudeProcessResidual>& memo,
+                               double dt, const Vec3d& sqrt_info, const NodeHandles& k,
+                               const NodeHandles& k1) {
+  out.addShared("attitude", memo, AttitudeProcessResidual(dt, sqrt_info), nullptr, k.q, k1.q, k.w,
+                k1.w);
+}
 
 }  // namespace traverse::smoother

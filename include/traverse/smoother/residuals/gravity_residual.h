@@ -13,6 +13,8 @@
 #include <ceres/autodiff_cost_function.h>
 
 #include "traverse/sensors/gravity.h"
+#include "traverse/smoother/residual_collector.h"
+#include "traverse/smoother/residuals/whitening.h"
 
 namespace traverse::smoother {
 
@@ -43,5 +45,14 @@ struct GravityResidual {
   Vec2d roll_pitch;
   Eigen::Matrix2d sqrt_info;
 };
+
+/// Constraint (residual_collector.h): a rest window's roll and pitch at its middle node k,
+/// whitened by the measurement's covariance. Block q_k.
+inline void addGravity(ResidualCollector& out, const sensors::RollPitchMeasurement& m,
+                       const NodeHandles& k) {
+  out.add("gravity",
+          GravityResidual::Create(m.roll_pitch, sqrtInformation<2>(m.covariance, "gravity")),
+          nullptr, k.q);
+}
 
 }  // namespace traverse::smoother

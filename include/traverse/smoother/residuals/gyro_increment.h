@@ -16,6 +16,7 @@
 #include <ceres/autodiff_cost_function.h>
 
 #include "traverse/core/so3.h"
+#include "traverse/smoother/residual_collector.h"
 
 namespace traverse::smoother {
 
@@ -43,5 +44,16 @@ struct GyroIncrementResidual {
   double dt;
   Vec3d increment, sqrt_info;
 };
+
+/// Constraint (residual_collector.h): the gyro increment between nodes k and k + 1, readings of
+/// noise σ_g every T_g s on the measured axes (`axes`: 1 measured, 0 not). Blocks q_k, q_{k+1} and
+/// the bias node k's residuals use.
+inline void addGyroIncrement(ResidualCollector& out, double dt, const Vec3d& increment_rad,
+                             double noise, double period, const Vec3d& axes, const NodeHandles& k,
+                             const NodeHandles& k1) {
+  const double sigma = noise * std::sqrt(period * dt);
+  out.add("gyro", GyroIncrementResidual::Create(dt, increment_rad, axes / sigma), nullptr, k.q,
+          k1.q, k.bias);
+}
 
 }  // namespace traverse::smoother

@@ -15,11 +15,15 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <ceres/sized_cost_function.h>
 
 #include "traverse/core/types.h"
+#include "traverse/rover/rover_geometry.h"
+#include "traverse/smoother/residual_collector.h"
+#include "traverse/smoother/residuals/analytic_cost.h"
 
 namespace traverse::smoother {
 
@@ -29,16 +33,17 @@ struct MarkovStep {
   MarkovStep(double dt, double a, double q)
       : phi(std::exp(a * dt)),
         sqrt_info(1.0 / std::sqrt(a < 0 ? q * -std::expm1(2.0 * a * dt) / (-2.0 * a) : q * dt)) {}
+  bool operator==(const MarkovStep&) const = default;
 };
 
+/// The N-component process of the header (functor; MarkovProcessResidual is its cost function).
 template <int N>
-class MarkovProcessResidual final : public ceres::SizedCostFunction<N, N, N> {
+class MarkovProcess {
  public:
   using VecN = Eigen::Matrix<double, N, 1>;
 
   /// a: rates (1/s, ≤ 0), q: noise densities (units² / s), means at both nodes.
-  MarkovProcessResidual(double dt, const VecN& a, const VecN& q, const VecN& mean_k,
-                        const VecN& mean_k1)
+  MarkovProcess(double dt, const VecN& a, const VecN& q, const VecN& mean_k, const VecN& mean_k1)
       : mean_k_(mean_k), mean_k1_(mean_k1) {
     for (int i = 0; i < N; ++i) {
       const MarkovStep step(dt, a[i], q[i]);
@@ -46,8 +51,7 @@ class MarkovProcessResidual final : public ceres::SizedCostFunction<N, N, N> {
     }
   }
 
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
     const Eigen::Map<const VecN> y_k(parameters[0]), y_k1(parameters[1]);
     Eigen::Map<VecN>{residuals} =
         sqrt_info_.cwiseProduct((y_k1 - mean_k1_) - phi_.cwiseProduct(y_k - mean_k_));
@@ -63,9 +67,19 @@ class MarkovProcessResidual final : public ceres::SizedCostFunction<N, N, N> {
   const VecN& sqrtInformation() const { return sqrt_info_; }
   const VecN& phi() const { return phi_; }
 
+  bool operator==(const MarkovProcess&) const = default;
+
+  static ceres::CostFunction* Create(const MarkovProcess& f) {
+    return new AnalyticCost<MarkovProcess, N, N, N>(f);
+  }
+
  private:
   VecN mean_k_, mean_k1_, phi_, sqrt_info_;
 };
+
+/// Cost function: parameter blocks y_k, y_{k+1} (N each).
+template <int N>
+using MarkovProcessResidual = AnalyticCost<MarkovProcess<N>, N, N, N>;
 
 }  // namespace traverse::smoother
 
@@ -77,14 +91,12 @@ namespace traverse::smoother {
 /// wheel meeting an edge changes its contact angle by many σ of the Gaussian process within a
 /// few samples, and a loss on the six-wheel block would charge that jump to all six.
 template <int N>
-class MarkovComponentResidual final : public ceres::SizedCostFunction<1, N, N> {
+class MarkovComponent {
  public:
   /// component in [0, N); a: rate (1/s, ≤ 0), q: noise density (units² / s).
-  MarkovComponentResidual(int component, double dt, double a, double q)
-      : i_(component), step_(dt, a, q) {}
+  MarkovComponent(int component, double dt, double a, double q) : i_(component), step_(dt, a, q) {}
 
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
     residuals[0] = step_.sqrt_info * (parameters[1][i_] - step_.phi * parameters[0][i_]);
     if (jacobians) {
       for (int k = 0; k < 2; ++k) {
@@ -99,10 +111,20 @@ class MarkovComponentResidual final : public ceres::SizedCostFunction<1, N, N> {
   int component() const { return i_; }
   const MarkovStep& step() const { return step_; }
 
+  bool operator==(const MarkovComponent&) const = default;
+
+  static ceres::CostFunction* Create(const MarkovComponent& f) {
+    return new AnalyticCost<MarkovComponent, 1, N, N>(f);
+  }
+
  private:
   int i_;
   MarkovStep step_;
 };
+
+/// Cost function: parameter blocks y_k, y_{k+1} (N each), one row.
+template <int N>
+using MarkovComponentResidual = AnalyticCost<MarkovComponent<N>, 1, N, N>;
 
 /// The process's stationary distribution at a segment's first node (e.g. K-8's contact angles,
 /// ξ ~ N(0, q τ / 2)): r = y / σ. Without it a contact angle no wheel constrains would be
@@ -126,5 +148,67 @@ class StationaryPriorResidual final : public ceres::SizedCostFunction<N, N> {
  private:
   VecN sqrt_info_;
 };
+
+// Constraints (residual_collector.h): this file's residuals in a segment problem, between nodes
+// k and k + 1 unless said otherwise.
+
+/// Rate perturbation (K-2): ω around the commanded rate (cmd_k, cmd_k1; zero, with a = 0, without
+/// cmd.csv), a and q per axis. Blocks ω_k, ω_{k+1}; consecutive equal ones share a cost function.
+inline void addRateProcess(ResidualCollector& out, CostMemo<MarkovProcess<3>>& memo, double dt,
+                           double a, double q, const Vec3d& cmd_k, const Vec3d& cmd_k1,
+                           const NodeHandles& k, const NodeHandles& k1) {
+  out.addShared("rate", memo,
+                MarkovProcess<3>(dt, Vec3d::Constant(a), Vec3d::Constant(q), cmd_k, cmd_k1),
+                nullptr, k.w, k1.w);
+}
+
+/// Velocity perturbation (K-1), as the rate's. Blocks v_k, v_{k+1}.
+inline void addVelocityProcess(ResidualCollector& out, CostMemo<MarkovProcess<3>>& memo, double dt,
+                               double a, double q, const Vec3d& cmd_k, const Vec3d& cmd_k1,
+                               const NodeHandles& k, const NodeHandles& k1) {
+  out.addShared("velocity", memo,
+                MarkovProcess<3>(dt, Vec3d::Constant(a), Vec3d::Constant(q), cmd_k, cmd_k1),
+                nullptr, k.v, k1.v);
+}
+
+/// Contact angles (K-8), time constant τ and noise density n_ξ. Blocks ξ_k, ξ_{k+1}. With a
+/// loss, one row per wheel under it (SmootherOptions::contact_loss_scale; one memo per wheel);
+/// without, the Gaussian six-row process.
+inline void addContactProcess(ResidualCollector& out,
+                              std::array<CostMemo<MarkovComponent<6>>, rover::kNumWheels>& memos,
+                              double dt, double time_constant, double noise,
+                              ceres::LossFunction* loss, const NodeHandles& k,
+                              const NodeHandles& k1) {
+  if (loss) {
+    const double a = -1.0 / time_constant;
+    for (int i = 0; i < rover::kNumWheels; ++i)
+      out.addShared("contact", memos[static_cast<size_t>(i)],
+                    MarkovComponent<6>(i, dt, a, noise * noise), loss, k.xi, k1.xi);
+  } else {
+    using Vec6 = Eigen::Matrix<double, 6, 1>;
+    out.add("contact",
+            new MarkovProcessResidual<6>(dt, Vec6::Constant(-1.0 / time_constant),
+                                         Vec6::Constant(noise * noise), Vec6::Zero(), Vec6::Zero()),
+            nullptr, k.xi, k1.xi);
+  }
+}
+
+/// Gyro bias random walk (K-9, the random-walk bias model), σ_b per √s. Blocks b_k, b_{k+1}.
+inline void addBiasWalk(ResidualCollector& out, double dt, double walk, const NodeHandles& k,
+                        const NodeHandles& k1) {
+  out.add("bias_walk",
+          new MarkovProcessResidual<3>(dt, Vec3d::Zero(), Vec3d::Constant(walk * walk),
+                                       Vec3d::Zero(), Vec3d::Zero()),
+          nullptr, k.bias, k1.bias);
+}
+
+/// Contact angles at a segment's first node k from K-8's stationary distribution,
+/// ξ ~ N(0, n_ξ² τ / 2). Block ξ_k.
+inline void addContactPrior(ResidualCollector& out, double time_constant, double noise,
+                            const NodeHandles& k) {
+  const double sigma = noise * std::sqrt(0.5 * time_constant);
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  out.add("contact_prior", new StationaryPriorResidual<6>(Vec6::Constant(sigma)), nullptr, k.xi);
+}
 
 }  // namespace traverse::smoother

@@ -11,6 +11,7 @@
 
 #include <ceres/autodiff_cost_function.h>
 
+#include "traverse/smoother/residual_collector.h"
 #include "traverse/smoother/residuals/interpolation.h"
 #include "traverse/smoother/residuals/midpoint_attitude_cost.h"
 
@@ -42,9 +43,11 @@ struct PositionProcessResidual {
   }
 
   /// Differentiated in two stages (midpoint_attitude_cost.h).
+  static ceres::CostFunction* Create(const PositionProcessResidual& f) {
+    return new MidpointAttitudeCost<PositionProcessResidual, 3, 2, 3, 3, 3, 4, 4, 3, 3>(f);
+  }
   static ceres::CostFunction* Create(double dt, double sqrt_info) {
-    return new MidpointAttitudeCost<PositionProcessResidual, 3, 2, 3, 3, 3, 4, 4, 3, 3>(
-        PositionProcessResidual(dt, sqrt_info));
+    return Create(PositionProcessResidual(dt, sqrt_info));
   }
   /// One 20-wide AutoDiffCostFunction over operator() (tests compare the two).
   static ceres::CostFunction* CreateFullAutodiff(double dt, double sqrt_info) {
@@ -52,7 +55,19 @@ struct PositionProcessResidual {
         new PositionProcessResidual(dt, sqrt_info));
   }
 
+  bool operator==(const PositionProcessResidual&) const = default;
+
   double dt, sqrt_info;
 };
+
+/// Constraint (residual_collector.h): the position process between nodes k and k + 1, blocks
+/// x_k, x_{k+1}, q_k, q_{k+1}, v_k, v_{k+1}; sqrt_info from sqrtInfo, or the zero-velocity σ over
+/// Δt inside a rest window. Consecutive equal ones share a cost function.
+inline void addPositionProcess(ResidualCollector& out, CostMemo<PositionProcessResidual>& memo,
+                               double dt, double sqrt_info, const NodeHandles& k,
+                               const NodeHandles& k1) {
+  out.addShared("position", memo, PositionProcessResidual(dt, sqrt_info), nullptr, k.x, k1.x, k.q,
+                k1.q, k.v, k1.v);
+}
 
 }  // namespace traverse::smoother

@@ -12,6 +12,7 @@
 #include <ceres/sized_cost_function.h>
 
 #include "traverse/core/types.h"
+#include "traverse/smoother/residual_collector.h"
 
 namespace traverse::smoother {
 
@@ -34,5 +35,22 @@ class RestBiasResidual final : public ceres::SizedCostFunction<3, 3> {
  private:
   Vec3d mean_, sqrt_info_;
 };
+
+/// Constraint (residual_collector.h): a rest window's mean gyro reading over `duration` s of
+/// readings of noise σ_g every T_g s, on the measured axes (`axes`: 1 measured, 0 not): σ = σ_g
+/// √(T_g / duration). Block: the bias node k's residuals use (k the window's middle node).
+inline void addRestBias(ResidualCollector& out, const Vec3d& mean_reading_rad_s, double noise,
+                        double period, double duration, const Vec3d& axes, const NodeHandles& k) {
+  const double sigma = noise * std::sqrt(period / duration);
+  out.add("rest_bias", new RestBiasResidual(mean_reading_rad_s, axes / sigma), nullptr, k.bias);
+}
+
+/// Constraint: a prior on the bias node k's residuals use — the EKF's estimate and σ (floored at
+/// 10⁻⁶ rad/s), for a segment without a rest window.
+inline void addBiasPrior(ResidualCollector& out, const Vec3d& bias, const Vec3d& sigma,
+                         const NodeHandles& k) {
+  const Vec3d s = sigma.cwiseMax(1e-6);
+  out.add("bias_prior", new RestBiasResidual(bias, s.cwiseInverse()), nullptr, k.bias);
+}
 
 }  // namespace traverse::smoother

@@ -18,8 +18,13 @@
 #include <ceres/sized_cost_function.h>
 
 #include <memory>
+#include <vector>
 
+#include "traverse/estimators/trajectory.h"
+#include "traverse/rover/joint_sample.h"
+#include "traverse/rover/rover_geometry.h"
 #include "traverse/rover/slip_constraint.h"
+#include "traverse/smoother/residual_collector.h"
 
 namespace traverse::smoother {
 
@@ -84,5 +89,16 @@ class SlipResidual final : public ceres::SizedCostFunction<4, 3, 3, 6> {
   std::unique_ptr<SlipWheelData> owned_;  ///< set by the owning constructor only
   const SlipWheelData* d_;
 };
+
+/// Constraint (residual_collector.h): the six wheels' slip residuals at node k, under the robust
+/// loss. Blocks v_k, ω_k, ξ_k. Σ is the slip noise plus the joint-rate and steering noise carried
+/// through at the seed's states (rover::slipCovariance); t_nom the nominal slip of the nominal
+/// body twist (rover::nominalSlip). Each wheel's numbers are appended to `data`, which the cost
+/// functions refer to: it is reserved beforehand and must not reallocate (std::logic_error if
+/// it would).
+void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
+                      const rover::RoverGeometry& geometry, const rover::SlipNoise& noise,
+                      const rover::JointSample& js, const est::TrajectoryNode& seed,
+                      const Twistd& nominal_twist, ceres::LossFunction* loss, const NodeHandles& k);
 
 }  // namespace traverse::smoother

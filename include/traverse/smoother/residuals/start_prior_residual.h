@@ -10,6 +10,8 @@
 #include <ceres/autodiff_cost_function.h>
 
 #include "traverse/core/so3.h"
+#include "traverse/smoother/residual_collector.h"
+#include "traverse/smoother/residuals/whitening.h"
 
 namespace traverse::smoother {
 
@@ -37,5 +39,19 @@ struct StartPriorResidual {
   Vec3d x_prior;
   Mat6d sqrt_info;
 };
+
+/// Constraint (residual_collector.h): the start prior at node k, position σ `position_sigma` per
+/// axis (the gauge anchor) and the attitude covariance `attitude_cov` (body δθ; 10⁻¹² added to
+/// its diagonal). Blocks q_k, x_k.
+inline void addStartPrior(ResidualCollector& out, const Quatd& q_prior, const Vec3d& x_prior,
+                          double position_sigma, const Mat3d& attitude_cov, const NodeHandles& k) {
+  Mat6d cov = Mat6d::Zero();
+  cov.topLeftCorner<3, 3>() = Mat3d::Identity() * position_sigma * position_sigma;
+  cov.bottomRightCorner<3, 3>() = attitude_cov;
+  cov.bottomRightCorner<3, 3>().diagonal().array() += 1e-12;
+  out.add("start_prior",
+          StartPriorResidual::Create(q_prior, x_prior, sqrtInformation<6>(cov, "start prior")),
+          nullptr, k.q, k.x);
+}
 
 }  // namespace traverse::smoother

@@ -12,6 +12,7 @@
 #include <ceres/autodiff_cost_function.h>
 
 #include "traverse/sensors/sun_sensor.h"
+#include "traverse/smoother/residual_collector.h"
 #include "traverse/smoother/residuals/interpolation.h"
 
 namespace traverse::smoother {
@@ -42,5 +43,15 @@ struct SunSensorResidual {
   sensors::SunSensorGeometry geometry;
   double sqrt_info;
 };
+
+/// Constraint (residual_collector.h): one sun reading at fraction u of the interval between
+/// nodes k and k + 1, noise σ_s, under the robust loss. Blocks q_k, q_{k+1}.
+inline void addSunReading(ResidualCollector& out, double u, const Vec2d& reading,
+                          const Vec3d& sun_site, const sensors::SunSensorGeometry& geometry,
+                          double noise, ceres::LossFunction* loss, const NodeHandles& k,
+                          const NodeHandles& k1) {
+  out.add("sun", SunSensorResidual::Create(u, reading, sun_site, geometry, 1.0 / noise), loss, k.q,
+          k1.q);
+}
 
 }  // namespace traverse::smoother

@@ -1,0 +1,33 @@
+// include/traverse/smoother/residuals/slip_residual.h
+#include "traverse/smoother/residuals/slip_residual.h"
+
+#include <stdexcept>
+
+#include "traverse/rover/nominal_slip.h"
+#include "traverse/smoother/residuals/whitening.h"
+
+namespace traverse::smoother {
+
+void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
+                      const rover::RoverGeometry& geometry, const rover::SlipNoise& noise,
+                      const rover::JointSample& js, const est::TrajectoryNode& seed,
+                      const Twistd& nominal_twist, ceres::LossFunction* loss,
+                      const NodeHandles& k) {
+  for (int i = 0; i < rover::kNumWheels; ++i) {
+    const double radius = geometry.wheels[i].radius;
+    Eigen::Matrix<double, 4, 7> J;
+    rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], seed.v_body,
+                                      seed.w_body, seed.xi[static_cast<size_t>(i)], &J);
+    const Eigen::Matrix4d R =
+        rover::slipCovariance(noise, js, i, seed.v_body, seed.w_body, J.leftCols<6>());
+    const Vec4d nominal =
+        rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, js.joint_twist[i]);
+    if (data.size() == data.capacity())
+      throw std::logic_error("smoother: slip data would move under its cost functions");
+    data.push_back(
+        {js.T_body_wheel[i], radius, js.joint_twist[i], nominal, sqrtInformation<4>(R, "slip")});
+    out.add("slip", new SlipResidual(i, &data.back()), loss, k.v, k.w, k.xi);
+  }
+}
+
+}  // namespace traverse::smoother
