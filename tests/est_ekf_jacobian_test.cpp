@@ -14,21 +14,8 @@
 namespace traverse::est {
 namespace {
 
+using testing::randomJointSample;
 using testing::rocky7;
-
-// A joint sample at random suspension and steering angles and random joint rates.
-rover::JointSample randomJointSample(std::mt19937& rng) {
-  const rover::RoverGeometry& geo = rocky7();
-  rover::JointVectord q = testing::randomVector<rover::kNumCoords>(rng, 0.3);
-  rover::JointVectord q_dot = testing::randomVector<rover::kNumCoords>(rng, 0.5);
-  const auto kin = rover::forwardKinematics<double>(geo, q);
-  rover::JointSample js;
-  for (int i = 0; i < rover::kNumWheels; ++i) {
-    js.T_body_wheel[i] = kin[i].T_body_wheel;
-    js.joint_twist[i] = rover::wheelJointTwist(kin[i], q_dot);
-  }
-  return js;
-}
 
 void expectSlipJacobianMatchesNumeric(bool with_command) {
   std::mt19937 rng(with_command ? 11 : 12);

@@ -113,37 +113,40 @@ Vec3<T> Ekf::omega(const Vec3<T>& w_p, const Vec3<T>& b, const EkfInputs& in) co
   return S * (in.gyro.cast<T>() - b) + (Mat3<T>::Identity() - S) * in.w_cmd.cast<T>() + w_p;
 }
 
-void Ekf::propagate(double dt, const EkfInputs& in) {
-  last_w_cmd_ = in.w_cmd;
-  if (dt <= 0) return;
-  ++stats_.propagations;
-  const bool accel_driven =
-      options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
+Ekf::Damping Ekf::damping(const EkfInputs& in) const {
+  // A perturbation decays towards the prescribed motion; without a prescription (no cmd.csv)
+  // the velocity, and the yaw rate in K-12 mode, are random walks (K §4.2).
+  const auto& pc = config_.process;
+  const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
+  Damping d;
+  d.accel_driven = options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
+  d.a_v = has_cmd_ && !d.accel_driven ? -1.0 / pc.velocity_time_constant_s : 0.0;
+  d.a_w = Vec3d::Constant(-1.0 / pc.rate_time_constant_s);
+  if (!hybrid && !has_cmd_) d.a_w.z() = 0.0;
+  d.a_xi = -1.0 / pc.contact_angle_time_constant_s;
+  return d;
+}
+
+EkfMatrix Ekf::processJacobian(const EkfInputs& in, Vec3d* v_dot) const {
+  const Damping d = damping(in);
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
   const Vec3d w = omega<double>(w_p_, b_, in);
-  const Vec3d v = accel_driven ? v_p_ : velocity<double>(v_p_, in);
+  const Vec3d v = d.accel_driven ? v_p_ : velocity<double>(v_p_, in);
   const Mat3d R = q_.toRotationMatrix();
-  // Damping: a perturbation decays towards the prescribed motion; without a prescription
-  // (no cmd.csv) the velocity, and the yaw rate in K-12 mode, are random walks (K §4.2).
-  const auto& pc = config_.process;
-  const double a_v = has_cmd_ && !accel_driven ? -1.0 / pc.velocity_time_constant_s : 0.0;
-  Vec3d a_w = Vec3d::Constant(-1.0 / pc.rate_time_constant_s);
-  if (!hybrid && !has_cmd_) a_w.z() = 0.0;
-  const double a_xi = -1.0 / pc.contact_angle_time_constant_s;
-
   EkfMatrix F = EkfMatrix::Zero();
   F.block<3, 3>(I::kTheta, I::kTheta) = -so3::skew(w);
   F.block<3, 3>(I::kTheta, I::kRate).setIdentity();
   if (hybrid) F.block<3, 3>(I::kTheta, I::kBias) = -S_;
-  F.block<3, 3>(I::kRate, I::kRate) = a_w.asDiagonal();
+  F.block<3, 3>(I::kRate, I::kRate) = d.a_w.asDiagonal();
   F.block<3, 3>(I::kPos, I::kTheta) = -R * so3::skew(v);
   F.block<3, 3>(I::kPos, I::kVel) = R;
-  F.block<6, 6>(I::kXi, I::kXi).diagonal().setConstant(a_xi);
-  Vec3d v_dot = Vec3d::Zero();
-  if (accel_driven) {  // O-4, linearised with Jets through the shared accelerometer model
+  F.block<6, 6>(I::kXi, I::kXi).diagonal().setConstant(d.a_xi);
+  if (v_dot) v_dot->setZero();
+  if (d.accel_driven) {  // O-4, linearised with Jets through the shared accelerometer model
     Eigen::Matrix<double, 12, 1> s;
     s << Vec3d::Zero(), w_p_, v_p_, b_;
     Eigen::Matrix<double, 3, 12> J;
+    Vec3d rate;
     jacobian<3, 12>(
         [&](const auto& z) {
           using T = typename std::decay_t<decltype(z)>::Scalar;
@@ -153,14 +156,31 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
               in.accel.cast<T>(), q, Vec3<T>(z.template segment<3>(6)), wt, Vec3<T>::Zero(),
               config_.accel.lever_arm_m, config_.gravity_mps2);
         },
-        s, &v_dot, &J);
+        s, &rate, &J);
+    if (v_dot) *v_dot = rate;
     F.block<3, 3>(I::kVel, I::kTheta) = J.block<3, 3>(0, 0);
     F.block<3, 3>(I::kVel, I::kRate) = J.block<3, 3>(0, 3);
     F.block<3, 3>(I::kVel, I::kVel) = J.block<3, 3>(0, 6);
     F.block<3, 3>(I::kVel, I::kBias) = J.block<3, 3>(0, 9);
   } else {
-    F.block<3, 3>(I::kVel, I::kVel).diagonal().setConstant(a_v);
+    F.block<3, 3>(I::kVel, I::kVel).diagonal().setConstant(d.a_v);
   }
+  return F;
+}
+
+void Ekf::propagate(double dt, const EkfInputs& in) {
+  last_w_cmd_ = in.w_cmd;
+  if (dt <= 0) return;
+  ++stats_.propagations;
+  const Damping d = damping(in);
+  const bool accel_driven = d.accel_driven;
+  const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
+  const Vec3d w = omega<double>(w_p_, b_, in);
+  const Vec3d v = accel_driven ? v_p_ : velocity<double>(v_p_, in);
+  const auto& pc = config_.process;
+  Vec3d v_dot;
+  const EkfMatrix F = processJacobian(in, &v_dot);
+
   // Continuous noise densities.
   EkfVector qc = EkfVector::Zero();
   const double n_w = pc.rate_noise_rad_s2_per_sqrt_hz;
@@ -177,6 +197,23 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   qc.segment<6>(I::kXi).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
   qc.segment<3>(I::kBias).setConstant(std::pow(config_.gyro.bias_random_walk_rad_s_per_sqrt_s, 2));
 
+  P_ = detail::propagateCovariance(F, dt, P_);
+  P_.diagonal() += qc * dt;  // white process noise over dt (first order)
+  P_ = 0.5 * (P_ + P_.transpose());
+
+  // Nominal state (midpoint rule).
+  const Quatd q_mid = q_ * so3::expQuat(Vec3d(0.5 * dt * w));
+  const Vec3d v_mid = accel_driven ? Vec3d(v + 0.5 * dt * v_dot) : v;
+  x_ += q_mid * v_mid * dt;
+  q_ = (q_ * so3::expQuat(Vec3d(w * dt))).normalized();
+  w_p_ = (d.a_w * dt).array().exp().matrix().cwiseProduct(w_p_);
+  v_p_ = accel_driven ? Vec3d(v_p_ + v_dot * dt) : Vec3d(std::exp(d.a_v * dt) * v_p_);
+  xi_ *= std::exp(d.a_xi * dt);
+}
+
+namespace detail {
+
+EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P) {
   // Φ = I + A, A = F dt + ½ (F dt)²; F has ~50 nonzeros of 441, so A P and A (A P)ᵀ are
   // computed over A's nonzero entries: Φ P Φᵀ = P + A P + (A P)ᵀ + A (A P)ᵀ.
   struct Entry {
@@ -205,57 +242,65 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   }
   // Column operations only (Eigen is column-major): B = P Aᵀ, D = Bᵀ = A P, E = D Aᵀ = A P Aᵀ.
   EkfMatrix B = EkfMatrix::Zero(), E = EkfMatrix::Zero();
-  for (int a = 0; a < n_nz; ++a) B.col(nz[a].i).noalias() += nz[a].v * P_.col(nz[a].j);
+  for (int a = 0; a < n_nz; ++a) B.col(nz[a].i).noalias() += nz[a].v * P.col(nz[a].j);
   const EkfMatrix D = B.transpose();
   for (int a = 0; a < n_nz; ++a) E.col(nz[a].i).noalias() += nz[a].v * D.col(nz[a].j);
-  P_ += D + B + E;
-  P_.diagonal() += qc * dt;  // white process noise over dt (first order)
-  P_ = 0.5 * (P_ + P_.transpose());
-
-  // Nominal state (midpoint rule).
-  const Quatd q_mid = q_ * so3::expQuat(Vec3d(0.5 * dt * w));
-  const Vec3d v_mid = accel_driven ? Vec3d(v + 0.5 * dt * v_dot) : v;
-  x_ += q_mid * v_mid * dt;
-  q_ = (q_ * so3::expQuat(Vec3d(w * dt))).normalized();
-  w_p_ = (a_w * dt).array().exp().matrix().cwiseProduct(w_p_);
-  v_p_ = accel_driven ? Vec3d(v_p_ + v_dot * dt) : Vec3d(std::exp(a_v * dt) * v_p_);
-  xi_ *= std::exp(a_xi * dt);
+  EkfMatrix out = P;
+  out += D + B + E;
+  return out;
 }
 
 template <int M>
-bool Ekf::update(const Eigen::Matrix<double, M, 1>& r,
-                 const Eigen::Matrix<double, M, kEkfStates>& H,
-                 const Eigen::Matrix<double, M, M>& R, double gate) {
-  // P Hᵀ over H's nonzero columns only (a slip row touches 8 of 21 states).
+void innovation(const EkfMatrix& P, const Eigen::Matrix<double, M, kEkfStates>& H,
+                const Eigen::Matrix<double, M, M>& R, Eigen::Matrix<double, kEkfStates, M>* PHt,
+                Eigen::Matrix<double, M, M>* S) {
   int cols[kEkfStates];
   int n = 0;
   for (int c = 0; c < kEkfStates; ++c) {
     if (!H.col(c).isZero(0.0)) cols[n++] = c;
   }
-  Eigen::Matrix<double, kEkfStates, M> PHt = Eigen::Matrix<double, kEkfStates, M>::Zero();
-  for (int j = 0; j < n; ++j) PHt.noalias() += P_.col(cols[j]) * H.col(cols[j]).transpose();
-  Eigen::Matrix<double, M, M> S = R;
-  for (int j = 0; j < n; ++j) S.noalias() += H.col(cols[j]) * PHt.row(cols[j]);
+  PHt->setZero();
+  for (int j = 0; j < n; ++j) PHt->noalias() += P.col(cols[j]) * H.col(cols[j]).transpose();
+  *S = R;
+  for (int j = 0; j < n; ++j) S->noalias() += H.col(cols[j]) * PHt->row(cols[j]);
+}
+
+template <int M>
+void josephUpdate(EkfMatrix* P, const Eigen::Matrix<double, kEkfStates, M>& K,
+                  const Eigen::Matrix<double, kEkfStates, M>& PHt,
+                  const Eigen::Matrix<double, M, M>& S) {
+  // (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ with HP = (P Hᵀ)ᵀ: rank-M
+  // products instead of two 21×21×21 ones, on the lower triangle with contiguous M-vectors.
+  const Eigen::Matrix<double, M, kEkfStates> Kt = K.transpose(), HP = PHt.transpose();
+  const Eigen::Matrix<double, M, kEkfStates> SKt = S * Kt;
+  for (int j = 0; j < kEkfStates; ++j) {
+    for (int i = j; i < kEkfStates; ++i) {
+      (*P)(i, j) += Kt.col(i).dot(SKt.col(j)) - Kt.col(i).dot(HP.col(j)) - HP.col(i).dot(Kt.col(j));
+    }
+  }
+  P->template triangularView<Eigen::StrictlyUpper>() = P->transpose();
+}
+
+Mat3d resetJacobian(const Vec3d& dtheta) {
+  return Mat3d::Identity() - 0.5 * so3::skew(dtheta);
+}
+
+}  // namespace detail
+
+template <int M>
+bool Ekf::update(const Eigen::Matrix<double, M, 1>& r,
+                 const Eigen::Matrix<double, M, kEkfStates>& H,
+                 const Eigen::Matrix<double, M, M>& R, double gate) {
+  Eigen::Matrix<double, kEkfStates, M> PHt;
+  Eigen::Matrix<double, M, M> S;
+  detail::innovation<M>(P_, H, R, &PHt, &S);
   // S is M×M with M ≤ 4: LLT checks it is positive definite, Eigen's closed-form inverse gives
   // the gain (a determinant threshold would reject the small, well-conditioned S of slip rows).
   if (Eigen::LLT<Eigen::Matrix<double, M, M>>(S).info() != Eigen::Success) return false;
   const Eigen::Matrix<double, M, M> S_inv = S.inverse();
   if (gate > 0 && r.dot(S_inv * r) > gate) return false;
   const Eigen::Matrix<double, kEkfStates, M> K = PHt * S_inv;
-  // Joseph form, expanded: (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ
-  // (valid for any gain K; HP = (P Hᵀ)ᵀ), at rank-M cost instead of two 21×21×21 products.
-  // Joseph form, expanded: (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ (valid
-  // for any gain; HP = (P Hᵀ)ᵀ) — rank-M products instead of two 21×21×21 ones. lazyProduct keeps
-  // Eigen on its coefficient-wise kernel: the packed GEMM path costs more than it saves here.
-  // Evaluated on the lower triangle (P stays exactly symmetric) with contiguous M-vectors.
-  const Eigen::Matrix<double, M, kEkfStates> Kt = K.transpose(), HP = PHt.transpose();
-  const Eigen::Matrix<double, M, kEkfStates> SKt = S * Kt;
-  for (int j = 0; j < kEkfStates; ++j) {
-    for (int i = j; i < kEkfStates; ++i) {
-      P_(i, j) += Kt.col(i).dot(SKt.col(j)) - Kt.col(i).dot(HP.col(j)) - HP.col(i).dot(Kt.col(j));
-    }
-  }
-  P_.template triangularView<Eigen::StrictlyUpper>() = P_.transpose();
+  detail::josephUpdate<M>(&P_, K, PHt, S);
   absorb(K * r);
   return true;
 }
@@ -269,7 +314,7 @@ void Ekf::absorb(const EkfVector& dx) {
   xi_ += dx.segment<6>(I::kXi);
   b_ += dx.segment<3>(I::kBias);
   // Reset Jacobian of the attitude error: δθ⁺ ≈ (I − ½[dθ]×) δθ.
-  const Mat3d G = Mat3d::Identity() - 0.5 * so3::skew(dtheta);
+  const Mat3d G = detail::resetJacobian(dtheta);
   P_.block<3, kEkfStates>(I::kTheta, 0) = G * P_.block<3, kEkfStates>(I::kTheta, 0);
   P_.block<kEkfStates, 3>(0, I::kTheta) = P_.block<kEkfStates, 3>(0, I::kTheta) * G.transpose();
 }
@@ -568,5 +613,24 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
   result.stats = ekf.stats();
   return result;
 }
+
+// The measurement sizes the filter uses (and the tests call), and the double rate model.
+#define TRAVERSE_EKF_INSTANTIATE_UPDATE(M)                                                       \
+  template void detail::innovation<M>(                                                           \
+      const EkfMatrix&, const Eigen::Matrix<double, M, kEkfStates>&,                             \
+      const Eigen::Matrix<double, M, M>&, Eigen::Matrix<double, kEkfStates, M>*,                 \
+      Eigen::Matrix<double, M, M>*);                                                             \
+  template void detail::josephUpdate<M>(EkfMatrix*, const Eigen::Matrix<double, kEkfStates, M>&, \
+                                        const Eigen::Matrix<double, kEkfStates, M>&,             \
+                                        const Eigen::Matrix<double, M, M>&);                     \
+  template bool Ekf::update<M>(const Eigen::Matrix<double, M, 1>&,                               \
+                               const Eigen::Matrix<double, M, kEkfStates>&,                      \
+                               const Eigen::Matrix<double, M, M>&, double);
+TRAVERSE_EKF_INSTANTIATE_UPDATE(1)
+TRAVERSE_EKF_INSTANTIATE_UPDATE(2)
+TRAVERSE_EKF_INSTANTIATE_UPDATE(3)
+TRAVERSE_EKF_INSTANTIATE_UPDATE(4)
+#undef TRAVERSE_EKF_INSTANTIATE_UPDATE
+template Vec3d Ekf::omega<double>(const Vec3d&, const Vec3d&, const EkfInputs&) const;
 
 }  // namespace traverse::est

@@ -71,13 +71,30 @@ struct EkfInputs {
 
 using rover::JointSample;
 
+/// The nominal state (the point the error state is taken about).
+struct EkfState {
+  Quatd q_site_body = Quatd::Identity();
+  Vec3d w_p = Vec3d::Zero();     ///< rate perturbation ω_p (body)
+  Vec3d p_site = Vec3d::Zero();  ///< position x (site)
+  Vec3d v_p = Vec3d::Zero();     ///< velocity perturbation v_p (body; O-4: the body velocity)
+  Eigen::Matrix<double, rover::kNumWheels, 1> xi =
+      Eigen::Matrix<double, rover::kNumWheels, 1>::Zero();  ///< contact angles ξ1..ξ6
+  Vec3d bias = Vec3d::Zero();                               ///< gyro bias b
+};
+
 class Ekf {
  public:
   Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       const EkfOptions& options, const InitialState& init, bool three_axis_gyro, bool has_cmd);
 
-  /// Propagates over dt with inputs evaluated at the middle of the interval.
+  /// Propagates over dt with inputs evaluated at the middle of the interval: the nominal state
+  /// by the midpoint rule, the covariance P ← Φ P Φᵀ + Q dt with Φ = I + F dt + ½ (F dt)² and
+  /// F = processJacobian(in) at the state before the step.
   void propagate(double dt, const EkfInputs& in);
+  /// F = ∂(d δx/dt)/∂δx of the continuous error dynamics at the current nominal state (21×21,
+  /// error state as in the file comment). `v_dot` (optional): the nominal v̇_p of the O-4
+  /// velocity model when the accelerometer drives it, else zero.
+  EkfMatrix processJacobian(const EkfInputs& in, Vec3d* v_dot = nullptr) const;
   /// K-17 for every wheel (sequential, four rows each) against the nominal slip of K §2.3.4.
   void updateSlip(const JointSample& js, const EkfInputs& in);
   /// K-15/K-16 with the sun direction in the site frame.
@@ -97,9 +114,28 @@ class Ekf {
     gyro_period_ = gyro_s, accel_period_ = accel_s;
   }
 
+  /// Generic measurement update with residual r = z − h(x̂), Jacobian H = ∂h/∂δx and noise R:
+  /// gain K = P Hᵀ S⁻¹ (S = H P Hᵀ + R, over H's nonzero columns), the expanded Joseph form
+  /// (detail::josephUpdate), then absorb(K r). False (nothing changed) when S is not positive
+  /// definite or, with gate > 0, when the innovation's r S⁻¹ r exceeds it. M = 1 … 4.
+  template <int M>
+  bool update(const Eigen::Matrix<double, M, 1>& r, const Eigen::Matrix<double, M, kEkfStates>& H,
+              const Eigen::Matrix<double, M, M>& R, double gate);
+  /// Moves the nominal state by the error-state correction dx (attitude by K-21, q ⊗ Exp(dθ))
+  /// and applies the reset Jacobian G = detail::resetJacobian(dθ) to P's attitude rows and
+  /// columns (the error is now taken about the new q).
+  void absorb(const EkfVector& dx);
+
   TrajectoryNode node(double t, const EkfInputs& in) const;
   const EkfStats& stats() const { return stats_; }
   const EkfMatrix& covariance() const { return P_; }
+  /// Replaces the covariance (tests; P must be symmetric positive semi-definite).
+  void setCovariance(const EkfMatrix& P) { P_ = P; }
+  EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_}; }
+  /// Replaces the nominal state (tests).
+  void setState(const EkfState& s) {
+    q_ = s.q_site_body, w_p_ = s.w_p, x_ = s.p_site, v_p_ = s.v_p, xi_ = s.xi, b_ = s.bias;
+  }
 
   /// Body rate and velocity of the current estimate (templated so Jets differentiate them).
   template <typename T>
@@ -110,10 +146,14 @@ class Ekf {
   }
 
  private:
-  template <int M>
-  bool update(const Eigen::Matrix<double, M, 1>& r, const Eigen::Matrix<double, M, kEkfStates>& H,
-              const Eigen::Matrix<double, M, M>& R, double gate);
-  void absorb(const EkfVector& dx);
+  /// Damping of the process at these inputs (K §4.2): ω̇_p = a_w ⊙ ω_p, v̇_p = a_v v_p (K-1),
+  /// ξ̇ = a_ξ ξ; accel_driven: the accelerometer drives the velocity (O-4).
+  struct Damping {
+    bool accel_driven;
+    Vec3d a_w;
+    double a_v, a_xi;
+  };
+  Damping damping(const EkfInputs& in) const;
   void gyroAxisUpdates(const Vec3d& w_m, bool at_rest, long* count);
 
   const io::RoverConfig& config_;
@@ -154,6 +194,35 @@ Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample
                          const Twistd* commanded, const Eigen::Matrix<double, 7, 1>& s,
                          Eigen::Matrix<double, 4, 7>* H,
                          Eigen::Matrix<double, 4, 7>* dt_ds = nullptr);
+
+/// Building blocks of Ekf, exposed so that tests check each against its dense textbook form
+/// (tests/est_ekf_process_jacobian_test.cpp).
+namespace detail {
+
+/// Φ P Φᵀ with Φ = I + F dt + ½ (F dt)², over F's nonzeros only (F has ~50 of 441): with
+/// A = Φ − I, P + A P + P Aᵀ + A P Aᵀ by column operations. No process noise.
+EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P);
+
+/// P Hᵀ and S = H P Hᵀ + R over H's nonzero columns only (a slip row touches 8 of 21 states).
+/// M = 1 … 4.
+template <int M>
+void innovation(const EkfMatrix& P, const Eigen::Matrix<double, M, kEkfStates>& H,
+                const Eigen::Matrix<double, M, M>& R, Eigen::Matrix<double, kEkfStates, M>* PHt,
+                Eigen::Matrix<double, M, M>* S);
+
+/// The Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ, expanded as P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ
+/// (valid for any gain K) from P Hᵀ and S of `innovation`, at rank-M cost; replaces *P. P stays
+/// exactly symmetric (lower triangle computed, then mirrored). M = 1 … 4.
+template <int M>
+void josephUpdate(EkfMatrix* P, const Eigen::Matrix<double, kEkfStates, M>& K,
+                  const Eigen::Matrix<double, kEkfStates, M>& PHt,
+                  const Eigen::Matrix<double, M, M>& S);
+
+/// Reset Jacobian of the attitude error when dθ is absorbed into q̂ (q̂⁺ = q̂ ⊗ Exp(dθ)):
+/// δθ⁺ = Log(q̂⁺⁻¹ q) ≈ G δθ with G = I − ½[dθ]× (first order in dθ).
+Mat3d resetJacobian(const Vec3d& dtheta);
+
+}  // namespace detail
 
 /// χ² quantile for `dof` degrees of freedom (regularized incomplete gamma), for gating.
 double chiSquareQuantile(double probability, int dof);
