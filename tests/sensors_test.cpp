@@ -24,8 +24,23 @@ TEST(GyroModel, HandCheckedAndJacobian) {
              Vec3d(0.11, -0.18, 0.33))
                 .norm(),
             1e-15);
-  EXPECT_EQ(GyroAxesList::headingOnly().count, 1);
-  EXPECT_EQ(GyroAxesList::headingOnly().axis[0], 2);  // B_g = [0 0 1]
+  // B_g: heading-only [0 0 1], three-axis I.
+  const GyroAxes z = GyroAxes::headingOnly(), xyz = GyroAxes::threeAxis();
+  EXPECT_EQ(z.count(), 1);
+  EXPECT_EQ(z.axis(0), 2);
+  EXPECT_EQ(xyz.axis(1), 1);
+  EXPECT_EQ(GyroAxes::forColumns(1).count(), 1);
+  EXPECT_EQ(GyroAxes::forColumns(3).count(), 3);
+  EXPECT_EQ(z.mask(), Vec3d(0, 0, 1));
+  EXPECT_EQ(xyz.selection(), Mat3d::Identity());
+  EXPECT_EQ(z.toBody(Eigen::VectorXd::Constant(1, 0.5)), Vec3d(0, 0, 0.5));
+  EXPECT_EQ(xyz.toBody(Vec3d(1, 2, 3)), Vec3d(1, 2, 3));
+  EXPECT_EQ(z.unmeasured(), (std::vector<int>{0, 1}));
+  EXPECT_TRUE(xyz.unmeasured().empty());
+  // The reading B_g(ω + b) a heading gyro gives is the z row of gyroPredict.
+  const Vec3d w(0.1, -0.2, 0.3), b(0.01, 0.02, 0.03);
+  EXPECT_EQ(z.toBody(Eigen::VectorXd::Constant(1, gyroPredict<double>(w, b)[z.axis(0)])),
+            Vec3d(z.selection() * gyroPredict<double>(w, b)));
   std::mt19937 rng(20);
   for (int k = 0; k < 10; ++k) {
     testing::expectJacobianMatchesNumeric<3, 6>(

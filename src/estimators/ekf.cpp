@@ -11,6 +11,7 @@
 #include "traverse/rover/nominal_slip.h"
 #include "traverse/sensors/accelerometer.h"
 #include "traverse/sensors/gravity.h"
+#include "traverse/sensors/gyro.h"
 #include "traverse/sensors/sun_sensor.h"
 
 namespace traverse::est {
@@ -79,7 +80,8 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       options_(options),
       three_axis_(three_axis_gyro),
       has_cmd_(has_cmd) {
-  S_ = three_axis_ ? Mat3d::Identity() : Mat3d(Vec3d(0, 0, 1).asDiagonal());
+  S_ =
+      (three_axis_ ? sensors::GyroAxes::threeAxis() : sensors::GyroAxes::headingOnly()).selection();
   gate2_ = chiSquareQuantile(options.gate_probability, 2);
   gate4_ = chiSquareQuantile(options.gate_probability, 4);
   q_ = init.q_site_body;
@@ -487,7 +489,7 @@ namespace {
 EkfInputs inputsAt(const io::TraverseLog& log, double t) {
   EkfInputs in;
   const Eigen::VectorXd g = interpolateRow(log.gyro, t);
-  in.gyro = g.size() == 3 ? Vec3d(g) : Vec3d(0, 0, g[0]);
+  in.gyro = sensors::GyroAxes::forColumns(g.size()).toBody(g);
   if (log.cmd) {
     const Eigen::VectorXd c = interpolateRow(*log.cmd, t);
     in.v_cmd = c.head<3>(), in.w_cmd = c.tail<3>();
@@ -557,8 +559,8 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
     options.velocity = log.accel ? EkfOptions::VelocityModel::kAccelDriven
                                  : EkfOptions::VelocityModel::kPerturbation;
   }
-  Ekf ekf(log.config, log.geometry, options, init, log.gyro.values.cols() == 3,
-          log.cmd.has_value());
+  Ekf ekf(log.config, log.geometry, options, init,
+          sensors::GyroAxes::forColumns(log.gyro.values.cols()).isThreeAxis(), log.cmd.has_value());
   ekf.setSamplePeriods(medianPeriod(log.gyro), log.accel ? medianPeriod(*log.accel) : 0.1);
   const std::vector<JointSample> joints = jointSamples(log);
   const double inf = std::numeric_limits<double>::infinity();

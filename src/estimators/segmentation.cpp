@@ -6,6 +6,7 @@
 #include "traverse/estimators/ekf.h"  // chiSquareQuantile
 #include "traverse/rover/joint_rates.h"
 #include "traverse/rover/rover_geometry.h"
+#include "traverse/sensors/gyro.h"
 
 namespace traverse::est {
 namespace {
@@ -79,8 +80,8 @@ std::vector<unsigned char> hysteresis(const std::vector<unsigned char>& active,
 void restMeasurements(const io::TraverseLog& log, const SegmentationOptions& o, RestWindow& w) {
   const double a = w.t_start + o.edge_margin_s, b = w.t_end - o.edge_margin_s;
   const io::Stream& g = log.gyro;
-  const bool three = g.values.cols() == 3;
-  w.bias_axes = {three, three, true};
+  const sensors::GyroAxes axes = sensors::GyroAxes::forColumns(g.values.cols());
+  w.bias_axes = {axes.measures(0), axes.measures(1), axes.measures(2)};
   std::vector<Eigen::Index> idx;
   for (Eigen::Index k = 0; k < g.size(); ++k) {
     if (g.t[k] >= a && g.t[k] <= b) idx.push_back(k);
@@ -88,7 +89,7 @@ void restMeasurements(const io::TraverseLog& log, const SegmentationOptions& o, 
   w.gyro_samples = static_cast<int>(idx.size());
   if (idx.size() >= 2) {
     for (Eigen::Index c = 0; c < g.values.cols(); ++c) {
-      const int axis = three ? static_cast<int>(c) : 2;
+      const int axis = axes.axis(c);
       double s = 0, s2 = 0;
       for (Eigen::Index k : idx) s += g.values(k, c);
       const double mean = s / static_cast<double>(idx.size());
@@ -137,7 +138,7 @@ void restMeasurements(const io::TraverseLog& log, const SegmentationOptions& o, 
 void driftFilter(const io::TraverseLog& log, const Segmentation& seg,
                  std::vector<RestWindow>& rests) {
   const io::Stream& g = log.gyro;
-  const bool three = g.values.cols() == 3;
+  const sensors::GyroAxes axes = sensors::GyroAxes::forColumns(g.values.cols());
   const double q = log.config.gyro.bias_random_walk_rad_s_per_sqrt_s;
   const double r = std::max(log.config.gyro.noise_rad_s * log.config.gyro.noise_rad_s, 1e-12);
   Vec3d d = Vec3d::Zero();
@@ -149,7 +150,7 @@ void driftFilter(const io::TraverseLog& log, const Segmentation& seg,
     P.array() += q * q * dt;  // bias random walk (maneuvering: estimate held, uncertainty grows)
     if (seg.gyro_rest[static_cast<size_t>(k)]) {
       for (Eigen::Index c = 0; c < g.values.cols(); ++c) {
-        const int axis = three ? static_cast<int>(c) : 2;
+        const int axis = axes.axis(c);
         const double K = P[axis] / (P[axis] + r);
         d[axis] += K * (g.values(k, c) - d[axis]);
         P[axis] *= 1.0 - K;

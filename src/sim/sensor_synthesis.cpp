@@ -129,14 +129,16 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
   log.geometry = geo;
 
   Rng gyro_rng(seed, 1), sun_rng(seed, 2), accel_rng(seed, 3), joint_rng(seed, 4);
+  const sensors::GyroAxes gyro_axes =
+      s.gyro_three_axis ? sensors::GyroAxes::threeAxis() : sensors::GyroAxes::headingOnly();
   const std::vector<std::string> gyro_cols = s.gyro_three_axis
                                                  ? std::vector<std::string>{"wx", "wy", "wz"}
                                                  : std::vector<std::string>{"wz"};
   log.gyro = sampled(truth, s.gyro_rate_hz, gyro_cols, [&](const TruthSample& x, auto row) {
     const Vec3d w = sensors::gyroPredict<double>(x.w_body, x.gyro_bias);  // K-12
     for (Eigen::Index c = 0; c < row.size(); ++c) {
-      const int axis = s.gyro_three_axis ? static_cast<int>(c) : 2;  // B_g (K-13)
-      row[c] = quantize(w[axis] + s.gyro_noise_rad_s * gyro_rng.normal(), s.gyro_quantum_rad_s);
+      row[c] = quantize(w[gyro_axes.axis(c)] + s.gyro_noise_rad_s * gyro_rng.normal(),
+                        s.gyro_quantum_rad_s);  // B_g (K-13)
     }
   });
 

@@ -62,7 +62,7 @@ SmootherData::SmootherData(const io::TraverseLog& log, const est::Trajectory& se
         joints[k].t - joints[nodes.back()].t >= options.node_period_s - 1e-9)
       nodes.push_back(k);
   }
-  three_axis_gyro = log.gyro.values.cols() == 3;
+  gyro_axes = sensors::GyroAxes::forColumns(log.gyro.values.cols());
   has_cmd = log.cmd.has_value();
   accel_driven = log.accel && options.velocity != SmootherOptions::VelocityModel::kPerturbation;
   if (options.velocity == SmootherOptions::VelocityModel::kAccelDriven && !log.accel)
@@ -77,11 +77,9 @@ SmootherData::SmootherData(const io::TraverseLog& log, const est::Trajectory& se
     throw InputError((log.dir / "rover.yaml").string(), 0, what.str());
   }
   gyro_period_s = io::medianPeriod(log.gyro);
-  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(log.gyro.size(), 3);
-  if (three_axis_gyro)
-    g = log.gyro.values;
-  else
-    g.col(2) = log.gyro.values.col(0);
+  Eigen::MatrixXd g(log.gyro.size(), 3);
+  for (Eigen::Index k = 0; k < log.gyro.size(); ++k)
+    g.row(k) = gyro_axes.toBody(log.gyro.values.row(k)).transpose();
   gyro = IntegratedSignal(log.gyro.t, g);
   if (log.accel) {
     accel_period_s = io::medianPeriod(*log.accel);
@@ -119,8 +117,8 @@ class SegmentBuilder {
     po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     problem_ = std::make_unique<ceres::Problem>(po);
-    if (!d.three_axis_gyro)
-      bias_manifold_ = std::make_unique<ceres::SubsetManifold>(3, std::vector<int>{0, 1});
+    if (!d.gyro_axes.isThreeAxis())  // hold the bias on the axes nothing observes
+      bias_manifold_ = std::make_unique<ceres::SubsetManifold>(3, d.gyro_axes.unmeasured());
     SmootherOptions::Loss loss = o.loss;
     if (loss == SmootherOptions::Loss::kRoverConfig) {
       const std::string name = cfg_.smoother.loss.value_or("huber");
@@ -133,7 +131,7 @@ class SegmentBuilder {
     if (loss == SmootherOptions::Loss::kCauchy) loss_ = std::make_unique<ceres::CauchyLoss>(scale);
     if (o.contact_loss_scale > 0)
       contact_loss_ = std::make_unique<ceres::CauchyLoss>(o.contact_loss_scale);
-    gyro_axes_ = d.three_axis_gyro ? Vec3d::Ones() : Vec3d(0, 0, 1);
+    gyro_axes_ = d.gyro_axes.mask();
     seedStates();
     makeHandles();
     markRest();

@@ -6,6 +6,7 @@
 
 #include <optional>
 
+#include "traverse/sensors/gyro.h"
 #include "traverse/smoother/smoother.h"
 
 namespace traverse::smoother {
@@ -34,7 +35,8 @@ struct SmootherData {
   std::vector<rover::JointSample> joints;        ///< wheel frames and joint twists per joint sample
   std::vector<size_t> nodes;                     ///< joint-sample indices that are smoother nodes
   Eigen::Matrix<double, Eigen::Dynamic, 6> cmd;  ///< commanded (v, ω) per node (zero without)
-  bool three_axis_gyro = false, has_cmd = false, accel_driven = false;
+  sensors::GyroAxes gyro_axes = sensors::GyroAxes::headingOnly();  ///< B_g of the log's gyro
+  bool has_cmd = false, accel_driven = false;
   double gyro_period_s = 0.05, accel_period_s = 0.1;
   IntegratedSignal gyro, accel;  ///< gyro as 3 axes (heading-only: z)
 };
