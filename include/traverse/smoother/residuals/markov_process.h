@@ -152,23 +152,30 @@ class StationaryPriorResidual final : public ceres::SizedCostFunction<N, N> {
 // Constraints (residual_collector.h): this file's residuals in a segment problem, between nodes
 // k and k + 1 unless said otherwise.
 
-/// Rate perturbation (K-2): ω around the commanded rate (cmd_k, cmd_k1; zero, with a = 0, without
-/// cmd.csv), a and q per axis. Blocks ω_k, ω_{k+1}; consecutive equal ones share a cost function.
+/// A body twist's perturbation (`member`: &NodeHandles::w for the rate, K-2; &NodeHandles::v for
+/// the velocity, K-1) around the commanded one (cmd_k, cmd_k1; zero, with a = 0, without
+/// cmd.csv), a and q per axis. Consecutive equal ones share a cost function.
+inline void addTwistProcess(ResidualCollector& out, const char* kind,
+                            CostMemo<MarkovProcess<3>>& memo, BlockHandle NodeHandles::*member,
+                            double dt, double a, double q, const Vec3d& cmd_k, const Vec3d& cmd_k1,
+                            const NodeHandles& k, const NodeHandles& k1) {
+  out.addShared(kind, memo,
+                MarkovProcess<3>(dt, Vec3d::Constant(a), Vec3d::Constant(q), cmd_k, cmd_k1),
+                nullptr, k.*member, k1.*member);
+}
+
+/// Rate perturbation (K-2). Blocks ω_k, ω_{k+1}.
 inline void addRateProcess(ResidualCollector& out, CostMemo<MarkovProcess<3>>& memo, double dt,
                            double a, double q, const Vec3d& cmd_k, const Vec3d& cmd_k1,
                            const NodeHandles& k, const NodeHandles& k1) {
-  out.addShared("rate", memo,
-                MarkovProcess<3>(dt, Vec3d::Constant(a), Vec3d::Constant(q), cmd_k, cmd_k1),
-                nullptr, k.w, k1.w);
+  addTwistProcess(out, "rate", memo, &NodeHandles::w, dt, a, q, cmd_k, cmd_k1, k, k1);
 }
 
-/// Velocity perturbation (K-1), as the rate's. Blocks v_k, v_{k+1}.
+/// Velocity perturbation (K-1). Blocks v_k, v_{k+1}.
 inline void addVelocityProcess(ResidualCollector& out, CostMemo<MarkovProcess<3>>& memo, double dt,
                                double a, double q, const Vec3d& cmd_k, const Vec3d& cmd_k1,
                                const NodeHandles& k, const NodeHandles& k1) {
-  out.addShared("velocity", memo,
-                MarkovProcess<3>(dt, Vec3d::Constant(a), Vec3d::Constant(q), cmd_k, cmd_k1),
-                nullptr, k.v, k1.v);
+  addTwistProcess(out, "velocity", memo, &NodeHandles::v, dt, a, q, cmd_k, cmd_k1, k, k1);
 }
 
 /// Contact angles (K-8), time constant τ and noise density n_ξ. Blocks ξ_k, ξ_{k+1}. With a
