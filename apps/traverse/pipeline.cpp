@@ -122,8 +122,8 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   config.smooth = smooth;
   pipeline::Estimates e = pipeline::estimate(log, config);
   for (const est::RefusedRest& r : e.segmentation.refused_rests) {
-    std::cerr << "warning: " << o.log_dir << ": still-looking window " << r.t_start << " .. "
-              << r.t_end << " s is not at rest (gyro and wheel drift chi2 " << r.chi2 << " > "
+    std::cerr << "warning: " << o.log_dir << ": apparent rest " << r.t_start << " .. " << r.t_end
+              << " s is not at rest (chi2 of gyro slope and wheel travel " << r.chi2 << " > "
               << r.threshold << ", " << r.dof << " dof): treated as motion\n";
   }
   std::filesystem::create_directories(o.out_dir);
