@@ -199,7 +199,7 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   qc.segment<6>(I::kXi).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
   qc.segment<3>(I::kBias).setConstant(std::pow(config_.gyro.bias_random_walk_rad_s_per_sqrt_s, 2));
 
-  P_ = detail::propagateCovariance(F, dt, P_);
+  detail::propagateCovarianceInPlace(F, dt, &P_);
   P_.diagonal() += qc * dt;  // white process noise over dt (first order)
   P_ = 0.5 * (P_ + P_.transpose());
 
@@ -216,6 +216,13 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
 namespace detail {
 
 EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P) {
+  EkfMatrix out = P;
+  propagateCovarianceInPlace(F, dt, &out);
+  return out;
+}
+
+void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P_inout) {
+  EkfMatrix& P = *P_inout;
   // Φ = I + A, A = F dt + ½ (F dt)²; F has ~50 nonzeros of 441, so A P and A (A P)ᵀ are
   // computed over A's nonzero entries: Φ P Φᵀ = P + A P + (A P)ᵀ + A (A P)ᵀ.
   struct Entry {
@@ -247,9 +254,7 @@ EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P)
   for (int a = 0; a < n_nz; ++a) B.col(nz[a].i).noalias() += nz[a].v * P.col(nz[a].j);
   const EkfMatrix D = B.transpose();
   for (int a = 0; a < n_nz; ++a) E.col(nz[a].i).noalias() += nz[a].v * D.col(nz[a].j);
-  EkfMatrix out = P;
-  out += D + B + E;
-  return out;
+  P += D + B + E;
 }
 
 template <int M>

@@ -202,6 +202,8 @@ namespace detail {
 /// Φ P Φᵀ with Φ = I + F dt + ½ (F dt)², over F's nonzeros only (F has ~50 of 441): with
 /// A = Φ − I, P + A P + P Aᵀ + A P Aᵀ by column operations. No process noise.
 EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P);
+/// The same, in place (the filter's form: no copy of P).
+void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P);
 
 /// P Hᵀ and S = H P Hᵀ + R over H's nonzero columns only (a slip row touches 8 of 21 states).
 /// M = 1 … 4.
