@@ -130,12 +130,21 @@ Ekf::Damping Ekf::damping(const EkfInputs& in) const {
 }
 
 EkfMatrix Ekf::processJacobian(const EkfInputs& in, Vec3d* v_dot) const {
-  const Damping d = damping(in);
+  Linearisation lin;
+  linearise(in, &lin);
+  if (v_dot) *v_dot = lin.v_dot;
+  return lin.F;
+}
+
+void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
+  out->d = damping(in);
+  const Damping& d = out->d;
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
-  const Vec3d w = omega<double>(w_p_, b_, in);
-  const Vec3d v = d.accel_driven ? v_p_ : velocity<double>(v_p_, in);
+  const Vec3d w = out->w = omega<double>(w_p_, b_, in);
+  const Vec3d v = out->v = d.accel_driven ? v_p_ : velocity<double>(v_p_, in);
   const Mat3d R = q_.toRotationMatrix();
-  EkfMatrix F = EkfMatrix::Zero();
+  EkfMatrix& F = out->F;
+  F.setZero();
   F.block<3, 3>(I::kTheta, I::kTheta) = -so3::skew(w);
   F.block<3, 3>(I::kTheta, I::kRate).setIdentity();
   if (hybrid) F.block<3, 3>(I::kTheta, I::kBias) = -S_;
@@ -143,7 +152,7 @@ EkfMatrix Ekf::processJacobian(const EkfInputs& in, Vec3d* v_dot) const {
   F.block<3, 3>(I::kPos, I::kTheta) = -R * so3::skew(v);
   F.block<3, 3>(I::kPos, I::kVel) = R;
   F.block<6, 6>(I::kXi, I::kXi).diagonal().setConstant(d.a_xi);
-  if (v_dot) v_dot->setZero();
+  out->v_dot.setZero();
   if (d.accel_driven) {  // O-4, linearised with Jets through the shared accelerometer model
     Eigen::Matrix<double, 12, 1> s;
     s << Vec3d::Zero(), w_p_, v_p_, b_;
@@ -159,7 +168,7 @@ EkfMatrix Ekf::processJacobian(const EkfInputs& in, Vec3d* v_dot) const {
               config_.accel.lever_arm_m, config_.gravity_mps2);
         },
         s, &rate, &J);
-    if (v_dot) *v_dot = rate;
+    out->v_dot = rate;
     F.block<3, 3>(I::kVel, I::kTheta) = J.block<3, 3>(0, 0);
     F.block<3, 3>(I::kVel, I::kRate) = J.block<3, 3>(0, 3);
     F.block<3, 3>(I::kVel, I::kVel) = J.block<3, 3>(0, 6);
@@ -167,21 +176,19 @@ EkfMatrix Ekf::processJacobian(const EkfInputs& in, Vec3d* v_dot) const {
   } else {
     F.block<3, 3>(I::kVel, I::kVel).diagonal().setConstant(d.a_v);
   }
-  return F;
 }
 
 void Ekf::propagate(double dt, const EkfInputs& in) {
   last_w_cmd_ = in.w_cmd;
   if (dt <= 0) return;
   ++stats_.propagations;
-  const Damping d = damping(in);
+  Linearisation lin;  // the dampings, ω, v, v̇ and F at the state before the step, once
+  linearise(in, &lin);
+  const Damping& d = lin.d;
   const bool accel_driven = d.accel_driven;
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
-  const Vec3d w = omega<double>(w_p_, b_, in);
-  const Vec3d v = accel_driven ? v_p_ : velocity<double>(v_p_, in);
+  const Vec3d &w = lin.w, &v = lin.v, &v_dot = lin.v_dot;
   const auto& pc = config_.process;
-  Vec3d v_dot;
-  const EkfMatrix F = processJacobian(in, &v_dot);
 
   // Continuous noise densities.
   EkfVector qc = EkfVector::Zero();
@@ -199,7 +206,7 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   qc.segment<6>(I::kXi).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
   qc.segment<3>(I::kBias).setConstant(std::pow(config_.gyro.bias_random_walk_rad_s_per_sqrt_s, 2));
 
-  detail::propagateCovarianceInPlace(F, dt, &P_);
+  detail::propagateCovarianceInPlace(lin.F, dt, &P_);
   P_.diagonal() += qc * dt;  // white process noise over dt (first order)
   P_ = 0.5 * (P_ + P_.transpose());
 

@@ -154,6 +154,14 @@ class Ekf {
     double a_v, a_xi;
   };
   Damping damping(const EkfInputs& in) const;
+  /// What a propagation step needs at the state before it: the dampings, ω, v, v̇ (O-4; zero
+  /// otherwise) and F. processJacobian returns its F; propagate uses all of it (once).
+  struct Linearisation {
+    Damping d;
+    Vec3d w, v, v_dot;
+    EkfMatrix F;
+  };
+  void linearise(const EkfInputs& in, Linearisation* out) const;
   void gyroAxisUpdates(const Vec3d& w_m, bool at_rest, long* count);
 
   const io::RoverConfig& config_;
