@@ -535,11 +535,22 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
       rover::smoothJoints(t, j.values.middleCols<2>(rover::kLambda1), {hs});
   angles.middleCols<2>(rover::kLambda1) = steer.values;
   rates.middleCols<2>(rover::kLambda1) = steer.rates;
+  // Suspension rates: a fit over a window fixed in time (rover.yaml suspension_filter_window_s,
+  // never narrower than the other joints'). A suspension angle enters a slip update twice, in
+  // the wheel frames (the angle as logged) and through the rate, and the rate of a neighbouring
+  // sample j weighs this sample's noise by w_{k-j} = (k−j)/Σm² of the fit: the filter's state,
+  // built from those neighbours, is then correlated with the noise of the frames it is updated
+  // through — a second-order bias, not noise, that grows with the joint rate at a fixed width in
+  // samples (slow-onset at 50 Hz, docs/results.md). Summed over the neighbours it falls as 1/h.
+  const int hg =
+      std::max(h, static_cast<int>(std::lround(0.5 * js.suspension_filter_window_s / dt)));
+  rates.leftCols<rover::kLambda1>() =
+      rover::jointRates(t, j.values.leftCols<rover::kLambda1>(), {hg});
   // Joint-rate noise of the smoothing-and-differencing filter (rover/joint_rates.h).
   const double s_steer = js.steeringNoise();
   rover::JointVectord rate_var;
-  rate_var.head<3>().setConstant(std::pow(js.angle_noise_rad / dt, 2) *
-                                 rover::smoothedRateVarianceFactor(h));
+  rate_var.head<rover::kLambda1>().setConstant(std::pow(js.angle_noise_rad / dt, 2) *
+                                               rover::smoothedRateVarianceFactor(hg));
   rate_var.segment<2>(rover::kLambda1)
       .setConstant(std::pow(s_steer / dt, 2) * rover::smoothedRateVarianceFactor(hs));
   rate_var.tail<rover::kNumWheels>().setConstant(std::pow(js.wheel_noise_rad / dt, 2) *

@@ -53,9 +53,10 @@ void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   c.accel.lever_arm_m = r.vec3(a, "accelerometer", "lever_arm_m", c.accel.lever_arm_m);
   c.accel.noise_mps2 = r.number(a, "accelerometer", "noise_mps2", c.accel.noise_mps2, 0.0, 100.0);
 
-  const YAML::Node j = r.section(root, "joint_sensors",
-                                 {"angle_noise_rad", "steering_noise_rad", "wheel_noise_rad",
-                                  "rate_filter_half_window", "steering_filter_window_s"});
+  const YAML::Node j = r.section(
+      root, "joint_sensors",
+      {"angle_noise_rad", "steering_noise_rad", "wheel_noise_rad", "rate_filter_half_window",
+       "steering_filter_window_s", "suspension_filter_window_s"});
   c.joints.angle_noise_rad =
       r.number(j, "joint_sensors", "angle_noise_rad", c.joints.angle_noise_rad, 0.0, 1.0);
   if (j["steering_noise_rad"])
@@ -64,6 +65,8 @@ void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
       r.number(j, "joint_sensors", "wheel_noise_rad", c.joints.wheel_noise_rad, 0.0, 1.0);
   c.joints.steering_filter_window_s = r.number(j, "joint_sensors", "steering_filter_window_s",
                                                c.joints.steering_filter_window_s, 0.0, 100.0);
+  c.joints.suspension_filter_window_s = r.number(j, "joint_sensors", "suspension_filter_window_s",
+                                                 c.joints.suspension_filter_window_s, 0.0, 100.0);
   c.joints.rate_filter_half_window = r.integer(j, "joint_sensors", "rate_filter_half_window",
                                                c.joints.rate_filter_half_window, 1, 100);
 }
@@ -262,7 +265,8 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
       << "wheel_noise_rad" << YAML::Value << num(c.joints.wheel_noise_rad) << YAML::Key
       << "rate_filter_half_window" << YAML::Value << c.joints.rate_filter_half_window << YAML::Key
       << "steering_filter_window_s" << YAML::Value << num(c.joints.steering_filter_window_s)
-      << YAML::EndMap;
+      << YAML::Key << "suspension_filter_window_s" << YAML::Value
+      << num(c.joints.suspension_filter_window_s) << YAML::EndMap;
   if (c.smoother.loss || c.smoother.loss_scale) {
     out << YAML::Key << "smoother" << YAML::Value << YAML::BeginMap;
     if (c.smoother.loss) out << YAML::Key << "loss" << YAML::Value << *c.smoother.loss;

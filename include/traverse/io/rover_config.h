@@ -67,6 +67,13 @@ struct JointSensorConfig {
   /// Steering angles change slowly (the rover steers, then drives): they are smoothed over
   /// ±window/2 so that their noise does not bias the slip constraint (E[cos δλ] < 1).
   double steering_filter_window_s = 1.0;
+  /// Suspension rates (γ̇) are fitted over a window of this duration (at least
+  /// 2·rate_filter_half_window + 1 samples). A suspension angle enters the slip rows twice, in
+  /// the wheel frames and through the rate; with a fit only a few samples wide, the neighbours'
+  /// rates carry this sample's angle noise, which the estimators then take as signal: a bias
+  /// that grows with the joint rate (docs/model.md, joint data). 0.3 s keeps h = 3 at 10 and 20 Hz
+  /// and gives h = 8 at 50 Hz.
+  double suspension_filter_window_s = 0.3;
 };
 
 /// Smoother settings a log may carry (rover.yaml `smoother:`; command-line options override).
