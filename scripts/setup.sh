@@ -4,7 +4,8 @@
 set -euo pipefail
 pkgs=(build-essential cmake ninja-build pkg-config
       libceres-dev libeigen3-dev libsuitesparse-dev libcli11-dev
-      libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev liburdfdom-dev)
+      libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev liburdfdom-dev
+      python3-h5py python3-numpy)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,12 +1,15 @@
 // `traverse evaluate OUTDIR --truth LOGDIR`: metrics of whatever trajectories OUTDIR holds
-// (dr.csv, ekf.csv, smoothed.csv) against LOGDIR/truth.csv; writes OUTDIR/metrics.json.
+// (dr.csv, ekf.csv, smoothed.csv) against LOGDIR/truth.csv, or, without it, against the
+// position-only LOGDIR/gps.csv (lever arm from LOGDIR/rover.yaml); writes OUTDIR/metrics.json.
 #include <iostream>
 #include <memory>
 
 #include "commands.h"
 #include "traverse/core/error.h"
 #include "traverse/eval/metrics.h"
+#include "traverse/eval/position_truth.h"
 #include "traverse/io/csv.h"
+#include "traverse/io/rover_config.h"
 
 namespace traverse::app {
 namespace {
@@ -46,22 +49,33 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
       "evaluate", "Compare the trajectories in OUTDIR with a log's truth; write metrics.json");
   cmd->add_option("OUTDIR", opt->out_dir, "Output directory holding dr.csv, ekf.csv, smoothed.csv")
       ->required();
-  cmd->add_option("--truth", opt->log_dir, "Log directory holding truth.csv")->required();
+  cmd->add_option("--truth", opt->log_dir, "Log directory holding truth.csv or gps.csv")
+      ->required();
   return [cmd, opt, &global]() {
     if (!*cmd) return -1;
-    const fs::path out_dir(opt->out_dir), truth_file = fs::path(opt->log_dir) / "truth.csv";
+    const fs::path out_dir(opt->out_dir), log_dir(opt->log_dir);
+    const fs::path truth_file = log_dir / "truth.csv", gps_file = log_dir / "gps.csv";
     if (!fs::is_directory(out_dir)) throw InputError(opt->out_dir, 0, "not a directory");
-    if (!fs::exists(truth_file)) {
-      throw InputError(truth_file.string(), 0, "missing: no truth to evaluate against");
+    const bool pose_truth = fs::exists(truth_file);
+    if (!pose_truth && !fs::exists(gps_file)) {
+      throw InputError(truth_file.string(), 0,
+                       "missing (and no gps.csv): no truth to evaluate against");
     }
     const std::vector<est::Trajectory> trajectories = readTrajectories(out_dir);
     if (trajectories.empty()) {
       throw InputError(opt->out_dir, 0,
                        "no trajectory to evaluate (dr.csv, ekf.csv, smoothed.csv)");
     }
-    const eval::TruthTrajectory truth(io::readCsv(truth_file, io::logStreamSpec("truth.csv")));
-    const eval::MetricsReport report =
-        eval::evaluateAll(logName(opt->log_dir), trajectories, truth);
+    eval::MetricsReport report;
+    if (pose_truth) {
+      const eval::TruthTrajectory truth(io::readCsv(truth_file, io::logStreamSpec("truth.csv")));
+      report = eval::evaluateAll(logName(opt->log_dir), trajectories, truth);
+    } else {  // position-only truth; its lever arm is in rover.yaml
+      const io::RoverConfig config = io::loadRoverConfig(log_dir / "rover.yaml");
+      const eval::PositionTruth truth(io::readCsv(gps_file, io::logStreamSpec("gps.csv")),
+                                      config.gps.antenna_body_m);
+      report = eval::evaluateAllAgainstFixes(logName(opt->log_dir), trajectories, truth);
+    }
     const fs::path json = out_dir / "metrics.json";
     eval::writeMetricsJson(json, report);
     if (!global.quiet)

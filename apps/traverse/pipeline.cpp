@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "traverse/eval/metrics.h"
+#include "traverse/eval/position_truth.h"
 #include "traverse/io/log_reader.h"
 
 namespace traverse::app {
@@ -112,6 +113,31 @@ void setRestBiasMetric(eval::MetricsReport& report, const est::Segmentation& seg
   }
 }
 
+namespace {
+
+/// metrics.json (and the table) when the log has truth: truth.csv, else the position-only
+/// gps.csv (docs/evaluation.md). Nothing without either.
+void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation& seg,
+                             const std::vector<est::Trajectory>& trajectories,
+                             const PipelineOptions& o, const GlobalOptions& global) {
+  if (!log.truth && !log.gps) return;
+  const auto dir_name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
+  const std::string name = dir_name.empty() ? o.log_dir : dir_name;
+  eval::MetricsReport report;
+  if (log.truth) {
+    const eval::TruthTrajectory truth(*log.truth);
+    report = eval::evaluateAll(name, trajectories, truth);
+    setRestBiasMetric(report, seg, truth);
+  } else {
+    report = eval::evaluateAllAgainstFixes(
+        name, trajectories, eval::PositionTruth(*log.gps, log.config.gps.antenna_body_m));
+  }
+  eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
+  if (!global.quiet) std::cout << eval::formatMetricsTable(report);
+}
+
+}  // namespace
+
 pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global,
                                 bool smooth) {
   io::ReadReport report;
@@ -135,15 +161,7 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     trajectories.push_back(e.smoothed->trajectory);
   }
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
-  if (log.truth) {  // evaluation when the log has truth (outputs.md)
-    const eval::TruthTrajectory truth(*log.truth);
-    const auto name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
-    eval::MetricsReport report =
-        eval::evaluateAll(name.empty() ? o.log_dir : name, trajectories, truth);
-    setRestBiasMetric(report, e.segmentation, truth);
-    eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
-    if (!global.quiet) std::cout << eval::formatMetricsTable(report);
-  }
+  evaluateAgainstLogTruth(log, e.segmentation, trajectories, o, global);
   if (!global.quiet) {
     const est::EkfStats& s = e.ekf.stats;
     std::cout << "segments: " << e.segmentation.segments.size() << " ("
@@ -172,7 +190,8 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
       }
     }
     std::cout << "wrote " << o.out_dir << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
-              << ".{csv,tum}, segments.csv" << (log.truth ? ", metrics.json" : "") << "\n";
+              << ".{csv,tum}, segments.csv" << (log.truth || log.gps ? ", metrics.json" : "")
+              << "\n";
   }
   return e;
 }

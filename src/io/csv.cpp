@@ -51,6 +51,11 @@ std::map<std::string, StreamSpec, std::less<>> makeLogSpecs() {
                       {{"s1", -1.0, 1.0, false}, {"s2", -1.0, 1.0, false}, {"valid", 0, 1, true}}};
   specs["accel.csv"] = {{{{"ax", "ay", "az"}, {}}}, {}};
   specs["cmd.csv"] = {{{{"vx", "vy", "vz", "wx", "wy", "wz"}, {}}}, {}};
+  // Position-only truth: a σ must be positive (a fix with σ = 0 would be an exact constraint).
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  specs["gps.csv"] = {
+      {{{"x", "y", "z", "sx", "sy", "sz"}, {}}},
+      {{"sx", 1e-9, kInf, false}, {"sy", 1e-9, kInf, false}, {"sz", 1e-9, kInf, false}}};
   const Names xi = {"xi1", "xi2", "xi3", "xi4", "xi5", "xi6"};
   specs["truth.csv"] = {{{{"x", "y", "z", "qw", "qx", "qy", "qz"},
                           {xi, {"bx", "by", "bz"}, {"vx", "vy", "vz"}, {"wx", "wy", "wz"}}}},

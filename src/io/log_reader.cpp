@@ -52,6 +52,7 @@ std::string notes(const StreamSummary& s) {
   if (s.valid_rows)
     return "valid " + std::to_string(*s.valid_rows) + " of " + std::to_string(s.rows);
   if (s.name == "gyro") return s.columns.size() == 3 ? "3-axis" : "heading only";
+  if (s.name == "gps") return "position-only truth";
   if (s.name != "truth") return "";
   std::string out = "pose";
   if (has("xi1")) out += " + contact angles";
@@ -83,6 +84,7 @@ TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport*
   log.accel = readOptional(dir, "accel.csv", options, report);
   log.cmd = readOptional(dir, "cmd.csv", options, report);
   log.truth = readOptional(dir, "truth.csv", options, report);
+  log.gps = readOptional(dir, "gps.csv", options, report);
   return log;
 }
 
@@ -126,6 +128,7 @@ LogSummary summarize(const TraverseLog& log) {
       {"accel", log.accel ? &*log.accel : nullptr},
       {"cmd", log.cmd ? &*log.cmd : nullptr},
       {"truth", log.truth ? &*log.truth : nullptr},
+      {"gps", log.gps ? &*log.gps : nullptr},
   };
   double t0 = std::numeric_limits<double>::infinity();
   double t1 = -t0;

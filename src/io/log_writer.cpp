@@ -62,6 +62,7 @@ void writeLog(const fs::path& dir, const TraverseLog& log) {
       {"accel.csv", log.accel ? &*log.accel : nullptr},
       {"cmd.csv", log.cmd ? &*log.cmd : nullptr},
       {"truth.csv", log.truth ? &*log.truth : nullptr},
+      {"gps.csv", log.gps ? &*log.gps : nullptr},
   };
   for (const auto& [name, stream] : streams) {
     if (stream != nullptr && !stream->empty()) writeCsv(dir / name, *stream);

@@ -166,7 +166,7 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   r.onlyKeys(
       root, "",
       {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "sun_sensor",
-       "accelerometer", "sun", "slip_noise", "process", "joint_sensors", "smoother"});
+       "accelerometer", "sun", "slip_noise", "process", "joint_sensors", "smoother", "gps"});
   RoverConfig c;
   if (!root["format"].IsDefined()) throw InputError(file, 0, "key 'format': missing (expected 1)");
   c.format = r.integer(root, "", "format", 0, 0, 1000);
@@ -190,6 +190,8 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   readSensors(r, root, c);
   readSun(r, root, c.sun);
   readNoise(r, root, c);
+  const YAML::Node gps = r.section(root, "gps", {"antenna_body_m"});
+  c.gps.antenna_body_m = r.vec3(gps, "gps", "antenna_body_m", c.gps.antenna_body_m);
   return c;
 }
 
@@ -272,6 +274,12 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
     if (c.smoother.loss) out << YAML::Key << "loss" << YAML::Value << *c.smoother.loss;
     if (c.smoother.loss_scale)
       out << YAML::Key << "loss_scale" << YAML::Value << num(*c.smoother.loss_scale);
+    out << YAML::EndMap;
+  }
+  if (!c.gps.antenna_body_m.isZero(0.0)) {  // absent = the default: existing files unchanged
+    out << YAML::Key << "gps" << YAML::Value << YAML::BeginMap << YAML::Key << "antenna_body_m"
+        << YAML::Value;
+    vec(c.gps.antenna_body_m);
     out << YAML::EndMap;
   }
   out << YAML::EndMap;

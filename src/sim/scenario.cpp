@@ -131,7 +131,7 @@ void readSlip(const YamlReader& r, const YAML::Node& root, SlipSpec& s) {
 }
 
 void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
-  const YAML::Node n = r.section(root, "sensors", {"gyro", "sun", "accel", "joints", "cmd"});
+  const YAML::Node n = r.section(root, "sensors", {"gyro", "sun", "accel", "joints", "cmd", "gps"});
   const YAML::Node g = r.section(n, "gyro",
                                  {"rate_hz", "axes", "noise_rad_s", "bias_rad_s",
                                   "bias_random_walk_rad_s_per_sqrt_s", "quantum_rad_s"});
@@ -169,6 +169,12 @@ void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
   s.wheel_angle_noise_rad = r.number(j, pj, "wheel_noise_rad", s.wheel_angle_noise_rad, 0, 1);
   s.wheel_quantum_rad = r.number(j, pj, "wheel_quantum_rad", s.wheel_quantum_rad, 0, 1);
   s.cmd = r.boolean(n, "sensors", "cmd", s.cmd);
+  const YAML::Node p = r.section(n, "gps", {"rate_hz", "sigma_m", "antenna_body_m"});
+  s.gps_rate_hz = r.number(p, "sensors.gps", "rate_hz", s.gps_rate_hz, 0, 2000);
+  s.gps_sigma_m = r.vec3(p, "sensors.gps", "sigma_m", s.gps_sigma_m);
+  if (!(s.gps_sigma_m.minCoeff() > 0))
+    r.fail(p["sigma_m"], "sensors.gps.sigma_m", "every sigma must be positive");
+  s.gps_antenna_body_m = r.vec3(p, "sensors.gps", "antenna_body_m", s.gps_antenna_body_m);
 }
 
 }  // namespace

@@ -83,6 +83,7 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
   c.slip_noise.lateral_mps = std::sqrt(c.slip_noise.lateral_mps * c.slip_noise.lateral_mps + lat2);
   c.accel.lever_arm_m = s.accel_lever_arm_m;
   c.accel.noise_mps2 = s.accel_noise_mps2;
+  c.gps.antenna_body_m = s.gps_antenna_body_m;
   c.joints.angle_noise_rad =
       std::max(s.joint_angle_noise_rad, s.joint_quantum_rad / std::sqrt(12.0));
   c.joints.steering_noise_rad =
@@ -182,6 +183,17 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
   if (s.cmd) {
     log.cmd = sampled(truth, s.joints_rate_hz, {"vx", "vy", "vz", "wx", "wy", "wz"},
                       [&](const TruthSample& x, auto row) { row = x.cmd.transpose(); });
+  }
+  if (s.gps_rate_hz > 0) {
+    Rng gps_rng(seed, 5);
+    log.gps = sampled(truth, s.gps_rate_hz, {"x", "y", "z", "sx", "sy", "sz"},
+                      [&](const TruthSample& x, auto row) {
+                        const Vec3d antenna = x.p_site + x.q_site_body * s.gps_antenna_body_m;
+                        for (int c = 0; c < 3; ++c) {
+                          row[c] = antenna[c] + s.gps_sigma_m[c] * gps_rng.normal();
+                          row[3 + c] = s.gps_sigma_m[c];
+                        }
+                      });
   }
   std::vector<std::string> truth_cols = {"x", "y", "z", "qw", "qx", "qy", "qz"};
   for (int i = 1; i <= kNumWheels; ++i) truth_cols.push_back("xi" + std::to_string(i));

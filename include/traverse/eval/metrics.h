@@ -37,6 +37,7 @@
 //    over the same nodes: the error's RMS over the RMS of the reported σ (1 when the σ columns
 //    are honest; e_θz, the body-z small angle, is the yaw error for a near-level rover).
 // A metric that cannot be computed (no truth group, zero path, no covariance) is omitted.
+// Against position-only truth (gps.csv) the metrics are eval/position_truth.h's.
 #pragma once
 
 #include <array>
@@ -54,26 +55,15 @@
 namespace traverse::eval {
 
 /// Every metric key of outputs.md, in the order metrics.json lists them.
-inline constexpr std::array<std::string_view, 20> kMetricKeys = {"distance_error_pct",
-                                                                 "final_position_error_m",
-                                                                 "final_error_pct_of_path",
-                                                                 "max_cross_track_m",
-                                                                 "position_rmse_m",
-                                                                 "roll_rmse_deg",
-                                                                 "pitch_rmse_deg",
-                                                                 "yaw_rmse_deg",
-                                                                 "contact_angle_rmse_deg",
-                                                                 "bias_z_error_dps",
-                                                                 "ate_posyaw_m",
-                                                                 "rpe_pct_per_m",
-                                                                 "nees_position_mean",
-                                                                 "nees_attitude_mean",
-                                                                 "nees_dof",
-                                                                 "position_rmse_over_sigma",
-                                                                 "yaw_rmse_over_sigma",
-                                                                 "final_vertical_error_m",
-                                                                 "bias_z_within_3sigma_pct",
-                                                                 "rest_bias_z_within_3sigma_pct"};
+inline constexpr std::array<std::string_view, 25> kMetricKeys = {
+    "distance_error_pct", "final_position_error_m", "final_error_pct_of_path", "max_cross_track_m",
+    "position_rmse_m", "roll_rmse_deg", "pitch_rmse_deg", "yaw_rmse_deg", "contact_angle_rmse_deg",
+    "bias_z_error_dps", "ate_posyaw_m", "rpe_pct_per_m", "nees_position_mean", "nees_attitude_mean",
+    "nees_dof", "position_rmse_over_sigma", "yaw_rmse_over_sigma", "final_vertical_error_m",
+    "bias_z_within_3sigma_pct", "rest_bias_z_within_3sigma_pct",
+    // position-only truth (eval/position_truth.h)
+    "ate_posyaw_horizontal_m", "ate_first_span_m", "gps_within_3sigma_pct", "gps_fixes_used",
+    "gps_fixes_rejected"};
 
 /// Metric key → value, in insertion order (evaluate returns them in kMetricKeys order).
 struct Metrics {

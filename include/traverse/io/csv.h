@@ -49,7 +49,7 @@ struct StreamSpec {
 };
 
 /// The contract's spec of a log stream by file name: "gyro.csv", "joints.csv", "sun.csv",
-/// "accel.csv", "cmd.csv" or "truth.csv". Throws std::out_of_range for any other name.
+/// "accel.csv", "cmd.csv", "truth.csv" or "gps.csv". Throws std::out_of_range for any other name.
 const StreamSpec& logStreamSpec(std::string_view file_name);
 
 /// Reads one stream file. Errors: InputError(file, line, message).

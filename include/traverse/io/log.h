@@ -47,6 +47,9 @@ struct TraverseLog {
   std::optional<Stream> accel;  ///< t,ax,ay,az
   std::optional<Stream> cmd;    ///< t,vx,vy,vz,wx,wy,wz
   std::optional<Stream> truth;  ///< t,x,y,z,qw,qx,qy,qz[,xi1..xi6][,bx,by,bz][,vx,vy,vz][,wx,wy,wz]
+  /// Position-only truth: t,x,y,z,sx,sy,sz — the GPS antenna in the site frame and its 1σ per
+  /// axis (m); the antenna's lever arm is RoverConfig::gps.
+  std::optional<Stream> gps;
 };
 
 struct ReadOptions {

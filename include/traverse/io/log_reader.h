@@ -12,7 +12,7 @@
 namespace traverse::io {
 
 /// Reads rover.yaml, the URDF it names, gyro.csv and joints.csv (required) and sun.csv,
-/// accel.csv, cmd.csv, truth.csv (when present). Every problem is an InputError naming the
+/// accel.csv, cmd.csv, truth.csv, gps.csv (when present). Every problem is an InputError naming the
 /// file and line (a missing required file: that file, line 0). The gyro header must agree with
 /// rover.yaml's gyro.axes. Rows skipped under options.skip_bad_rows are added to *report.
 TraverseLog readLog(const std::filesystem::path& dir, const ReadOptions& options = {},

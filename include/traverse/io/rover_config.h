@@ -76,6 +76,11 @@ struct JointSensorConfig {
   double suspension_filter_window_s = 0.3;
 };
 
+/// Position-only truth (gps.csv): where its antenna sits on the body.
+struct GpsConfig {
+  Vec3d antenna_body_m = Vec3d::Zero();  ///< body origin → antenna phase centre, body frame
+};
+
 /// Smoother settings a log may carry (rover.yaml `smoother:`; command-line options override).
 struct SmootherConfig {
   std::optional<std::string> loss;   ///< robust loss on sun and slip: huber, cauchy, none
@@ -98,6 +103,7 @@ struct RoverConfig {
   ProcessConfig process;
   JointSensorConfig joints;
   SmootherConfig smoother;
+  GpsConfig gps;
 };
 
 /// Reads and validates rover.yaml (errors: InputError naming file and key).

@@ -71,6 +71,11 @@ struct SensorSpec {
   double wheel_angle_noise_rad = 0.0;  ///< drive encoders ψ
   double wheel_quantum_rad = 0.0;
   bool cmd = true;
+  /// gps.csv, position-only truth of an antenna at gps_antenna_body_m: the true antenna
+  /// position plus white noise of 1σ gps_sigma_m per site axis. 0 Hz: no gps.csv.
+  double gps_rate_hz = 0.0;
+  Vec3d gps_sigma_m = Vec3d(0.02, 0.02, 0.04);
+  Vec3d gps_antenna_body_m = Vec3d::Zero();
 };
 
 struct Scenario {
