@@ -26,7 +26,7 @@ void expectSlipJacobianMatchesNumeric(bool with_command) {
     const Twistd* commanded = with_command ? &cmd : nullptr;
     Eigen::Matrix<double, 7, 1> s = testing::randomVector<7>(rng, 0.2);
     s[6] = 0.4 * (s[6] / 0.2);  // contact angle up to ±0.4 rad
-    for (int i = 0; i < rover::kNumWheels; ++i) {
+    for (int i = 0; i < r7::kNumWheels; ++i) {
       Eigen::Matrix<double, 4, 7> H, Jt;
       slipUpdateResidual(geo, js, i, commanded, s, &H, &Jt);
       // H = −∂r/∂s (r = z − h(x) with z the nominal slip or 0).
@@ -61,16 +61,17 @@ TEST(EstEkfJacobian, SlipUpdateWithoutCommandDifferentiatesTheNominalSlip) {
 // constraint alone would claim 1.
 TEST(EstEkfJacobian, SpinRowHasNoInformationOnYawRateWithoutCommand) {
   const rover::RoverGeometry& geo = rocky7();
-  const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero());
+  const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero(r7::kNumCoords));
   rover::JointSample js;
-  for (int i = 0; i < rover::kNumWheels; ++i) {
+  js.resize(geo.numWheels());
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     js.T_body_wheel[i] = kin[i].T_body_wheel;
     js.joint_twist[i].setZero();
   }
   Eigen::Matrix<double, 7, 1> s = Eigen::Matrix<double, 7, 1>::Zero();
   s[5] = 0.2;
   s[1] = -0.2 * geo.turn_centre_x;  // the nominal twist of that turn
-  for (int i = 0; i < rover::kNumWheels; ++i) {
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     Eigen::Matrix<double, 4, 7> H, Jt;
     const Vec4d r = slipUpdateResidual(geo, js, i, nullptr, s, &H, &Jt);
     // The state is the nominal motion: the nominal rows (transverse, spin) have no residual.

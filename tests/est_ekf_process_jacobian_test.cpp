@@ -22,7 +22,8 @@ namespace {
 using I = EkfIndex;
 using testing::randomUnitQuaternion;
 using testing::randomVector;
-using Vec6d = Eigen::Matrix<double, rover::kNumWheels, 1>;
+using Vec6d = Eigen::Matrix<double, r7::kNumWheels, 1>;
+constexpr int kN = ekfStates(r7::kNumWheels);  // Rocky-7's error state (21)
 
 io::RoverConfig rocky7Config() {
   io::RoverConfig c =
@@ -72,7 +73,7 @@ EkfState randomState(std::mt19937& rng) {
   x.w_p = randomVector<3>(rng, 0.3);
   x.p_site = randomVector<3>(rng, 5.0);
   x.v_p = randomVector<3>(rng, 0.3);
-  x.xi = randomVector<rover::kNumWheels>(rng, 0.4);
+  x.xi = randomVector<r7::kNumWheels>(rng, 0.4);
   x.bias = randomVector<3>(rng, 0.02);
   return x;
 }
@@ -125,7 +126,7 @@ EkfState boxplus(const EkfState& x, const EkfVector& dx) {
   y.w_p += dx.segment<3>(I::kRate);
   y.p_site += dx.segment<3>(I::kPos);
   y.v_p += dx.segment<3>(I::kVel);
-  y.xi += dx.segment<6>(I::kXi);
+  y.xi += dx.segment(I::kXi, r7::kNumWheels);
   y.bias += dx.segment<3>(I::kBias);
   return y;
 }
@@ -145,12 +146,12 @@ EkfVector errorRate(const Ekf& ekf, const Variant& v, const io::RoverConfig& c,
   const auto dtheta = [&](double t) {
     return so3::log(Quatd(so3::expQuat(Vec3d(-t * f_hat.w)) * e0 * so3::expQuat(Vec3d(t * f.w))));
   };
-  EkfVector r;
+  EkfVector r(kN);
   r.segment<3>(I::kTheta) = (dtheta(h) - dtheta(-h)) / (2.0 * h);
   r.segment<3>(I::kRate) = f.w_p_dot - f_hat.w_p_dot;
   r.segment<3>(I::kPos) = f.p_dot - f_hat.p_dot;
   r.segment<3>(I::kVel) = f.v_p_dot - f_hat.v_p_dot;
-  r.segment<6>(I::kXi) = f.xi_dot - f_hat.xi_dot;
+  r.segment(I::kXi, r7::kNumWheels) = f.xi_dot - f_hat.xi_dot;
   r.segment<3>(I::kBias) = f.b_dot - f_hat.b_dot;
   return r;
 }
@@ -159,9 +160,9 @@ EkfVector errorRate(const Ekf& ekf, const Variant& v, const io::RoverConfig& c,
 EkfMatrix numericProcessJacobian(const Ekf& ekf, const Variant& v, const io::RoverConfig& c,
                                  const EkfState& x_hat, const EkfInputs& in) {
   const double eps = 1e-5;
-  EkfMatrix F;
-  for (int j = 0; j < kEkfStates; ++j) {
-    const EkfVector e = EkfVector::Unit(j) * eps;
+  EkfMatrix F(kN, kN);
+  for (int j = 0; j < kN; ++j) {
+    const EkfVector e = EkfVector::Unit(kN, j) * eps;
     F.col(j) =
         (errorRate(ekf, v, c, x_hat, e, in) - errorRate(ekf, v, c, x_hat, -e, in)) / (2.0 * eps);
   }
@@ -273,10 +274,10 @@ TEST(EstEkfProcessJacobian, HandCheckedBlocks) {
 
 EkfMatrix randomCovariance(std::mt19937& rng) {
   // A P of mixed scales (attitude ~1e-2 rad, position ~1 m, …) with correlations.
-  EkfMatrix L;
-  for (int j = 0; j < kEkfStates; ++j) L.col(j) = randomVector<kEkfStates>(rng);
-  const EkfVector scale = (randomVector<kEkfStates>(rng, 1.0).array() * 2.0).exp().matrix();
-  return scale.asDiagonal() * (L * L.transpose() + EkfMatrix::Identity()) * scale.asDiagonal();
+  EkfMatrix L(kN, kN);
+  for (int j = 0; j < kN; ++j) L.col(j) = randomVector<kN>(rng);
+  const EkfVector scale = (randomVector<kN>(rng, 1.0).array() * 2.0).exp().matrix();
+  return scale.asDiagonal() * (L * L.transpose() + EkfMatrix::Identity(kN, kN)) * scale.asDiagonal();
 }
 
 // Φ P Φᵀ over F's nonzeros equals the dense (I + F dt + ½(F dt)²) P (…)ᵀ, and propagate adds
@@ -294,7 +295,7 @@ TEST(EstEkfProcessJacobian, SparseCovariancePropagationMatchesDense) {
       const EkfMatrix P = randomCovariance(rng);
       for (const double dt : {0.001, 0.02, 0.25}) {
         const EkfMatrix Fdt = F * dt;
-        const EkfMatrix Phi = EkfMatrix::Identity() + Fdt + 0.5 * Fdt * Fdt;
+        const EkfMatrix Phi = EkfMatrix::Identity(kN, kN) + Fdt + 0.5 * Fdt * Fdt;
         const EkfMatrix dense = Phi * P * Phi.transpose();
         const EkfMatrix sparse = detail::propagateCovariance(F, dt, P);
         EXPECT_LE(relativeError(sparse, dense), 1e-12) << describe(v) << " dt " << dt;
@@ -314,10 +315,10 @@ TEST(EstEkfProcessJacobian, SparseCovariancePropagationMatchesDense) {
 
 /// H with M rows on a random subset of the columns (the rest exactly zero).
 template <int M>
-Eigen::Matrix<double, M, kEkfStates> randomSparseH(std::mt19937& rng) {
-  Eigen::Matrix<double, M, kEkfStates> H = Eigen::Matrix<double, M, kEkfStates>::Zero();
+EkfRows<M> randomSparseH(std::mt19937& rng) {
+  EkfRows<M> H = EkfRows<M>::Zero(M, kN);
   std::bernoulli_distribution used(0.4);
-  for (int c = 0; c < kEkfStates; ++c)
+  for (int c = 0; c < kN; ++c)
     if (used(rng)) H.col(c) = randomVector<M>(rng, 2.0);
   H(0, 0) = 1.0;  // at least one column
   return H;
@@ -332,10 +333,9 @@ Eigen::Matrix<double, M, M> randomSpd(std::mt19937& rng, double scale) {
 
 /// The textbook Joseph form.
 template <int M>
-EkfMatrix denseJoseph(const EkfMatrix& P, const Eigen::Matrix<double, M, kEkfStates>& H,
-                      const Eigen::Matrix<double, M, M>& R,
-                      const Eigen::Matrix<double, kEkfStates, M>& K) {
-  const EkfMatrix IKH = EkfMatrix::Identity() - K * H;
+EkfMatrix denseJoseph(const EkfMatrix& P, const EkfRows<M>& H, const Eigen::Matrix<double, M, M>& R,
+                      const EkfCols<M>& K) {
+  const EkfMatrix IKH = EkfMatrix::Identity(kN, kN) - K * H;
   return IKH * P * IKH.transpose() + K * R * K.transpose();
 }
 
@@ -345,19 +345,19 @@ void expectJosephMatchesDense(std::mt19937& rng) {
     const EkfMatrix P = randomCovariance(rng);
     const auto H = randomSparseH<M>(rng);
     const auto R = randomSpd<M>(rng, 0.1);
-    Eigen::Matrix<double, kEkfStates, M> PHt;
+    EkfCols<M> PHt;
     Eigen::Matrix<double, M, M> S;
     detail::innovation<M>(P, H, R, &PHt, &S);
-    const Eigen::Matrix<double, kEkfStates, M> PHt_dense = P * H.transpose();
+    const EkfCols<M> PHt_dense = P * H.transpose();
     const Eigen::Matrix<double, M, M> S_dense = H * P * H.transpose() + R;
     EXPECT_LE(relativeError(PHt, PHt_dense), 1e-13) << "M " << M;
     EXPECT_LE(relativeError(S, S_dense), 1e-13) << "M " << M;
-    const Eigen::Matrix<double, kEkfStates, M> K_opt = PHt_dense * S_dense.inverse();
+    const EkfCols<M> K_opt = PHt_dense * S_dense.inverse();
     // Joseph holds for any gain: the optimal one, a scaled one and an arbitrary one.
-    Eigen::Matrix<double, kEkfStates, M> K_arb;
-    for (int j = 0; j < M; ++j) K_arb.col(j) = randomVector<kEkfStates>(rng);
-    for (const Eigen::Matrix<double, kEkfStates, M>& K :
-         {K_opt, Eigen::Matrix<double, kEkfStates, M>(0.6 * K_opt), K_arb}) {
+    EkfCols<M> K_arb(kN, M);
+    for (int j = 0; j < M; ++j) K_arb.col(j) = randomVector<kN>(rng);
+    for (const EkfCols<M>& K :
+         {K_opt, EkfCols<M>(0.6 * K_opt), K_arb}) {
       EkfMatrix P_new = P;
       detail::josephUpdate<M>(&P_new, K, PHt, S);
       const EkfMatrix dense = denseJoseph<M>(P, H, R, K);
@@ -367,7 +367,7 @@ void expectJosephMatchesDense(std::mt19937& rng) {
     // With the optimal gain it is the short form (I − K H) P.
     EkfMatrix P_opt = P;
     detail::josephUpdate<M>(&P_opt, K_opt, PHt, S);
-    const EkfMatrix short_form = (EkfMatrix::Identity() - K_opt * H) * P;
+    const EkfMatrix short_form = (EkfMatrix::Identity(kN, kN) - K_opt * H) * P;
     EXPECT_LE(relativeError(P_opt, short_form), 1e-10) << "M " << M;
   }
 }
@@ -394,14 +394,14 @@ TEST(EstEkfJoseph, SlipUpdateMatchesDenseReference) {
       const rover::JointSample js = testing::randomJointSample(rng);
       const EkfState x = randomState(rng);
       const EkfInputs in = randomInputs(rng, v, x, fx.config.gravity_mps2);
-      const int wheel = trial % rover::kNumWheels;
+      const int wheel = trial % r7::kNumWheels;
       Eigen::Matrix<double, 7, 1> s;
       s << (v.accel ? x.v_p : ekf.velocity<double>(x.v_p, in)),
           ekf.omega<double>(x.w_p, x.bias, in), x.xi[wheel];
       const Twistd cmd = rover::nominalBodyTwist(geo, in.v_cmd.x(), in.w_cmd.z());
       Eigen::Matrix<double, 4, 7> J;
       const Vec4d r = slipUpdateResidual(geo, js, wheel, v.has_cmd ? &cmd : nullptr, s, &J);
-      Eigen::Matrix<double, 4, kEkfStates> H = Eigen::Matrix<double, 4, kEkfStates>::Zero();
+      EkfRows<4> H = EkfRows<4>::Zero(4, kN);
       H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
       H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
       if (!v.k12) {
@@ -416,10 +416,10 @@ TEST(EstEkfJoseph, SlipUpdateMatchesDenseReference) {
       ekf.setCovariance(P);
       ASSERT_TRUE(ekf.update<4>(r, H, R, 0.0));
 
-      const Eigen::Matrix<double, kEkfStates, 4> K =
+      const EkfCols<4> K =
           P * H.transpose() * (H * P * H.transpose() + R).inverse();
       const EkfVector dx = K * r;
-      EkfMatrix G = EkfMatrix::Identity();
+      EkfMatrix G = EkfMatrix::Identity(kN, kN);
       G.block<3, 3>(I::kTheta, I::kTheta) =
           Mat3d::Identity() - 0.5 * so3::skew(Vec3d(dx.segment<3>(I::kTheta)));
       const EkfMatrix P_ref = G * denseJoseph<4>(P, H, R, K) * G.transpose();
@@ -469,11 +469,11 @@ TEST(EstEkfReset, AbsorbAppliesResetToAttitudeRowsAndColumns) {
   for (int trial = 0; trial < 20; ++trial) {
     const EkfState x = randomState(rng);
     const EkfMatrix P = randomCovariance(rng);
-    const EkfVector dx = randomVector<kEkfStates>(rng, 0.05);
+    const EkfVector dx = randomVector<kN>(rng, 0.05);
     ekf.setState(x);
     ekf.setCovariance(P);
     ekf.absorb(dx);
-    EkfMatrix G = EkfMatrix::Identity();
+    EkfMatrix G = EkfMatrix::Identity(kN, kN);
     G.block<3, 3>(I::kTheta, I::kTheta) = detail::resetJacobian(dx.segment<3>(I::kTheta));
     EXPECT_LE(relativeError(ekf.covariance(), G * P * G.transpose()), 1e-14);
     // Only the attitude rows and columns change.

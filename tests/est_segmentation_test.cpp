@@ -3,6 +3,7 @@
 // measurements.
 #include <gtest/gtest.h>
 
+#include "support/rocky7_coords.h"
 #include "support/jacobian_check.h"
 #include "traverse/estimators/ekf.h"  // chiSquareQuantile
 #include "traverse/estimators/segmentation.h"
@@ -167,8 +168,8 @@ TEST(EstSegmentation, CreepingIsNeverRest) {
     sim::Simulation sim = sim::simulate(sc, data / "rovers" / "rocky7", seed);
     io::Stream& j = sim.log.joints;
     for (Eigen::Index k = 0; k < j.size(); ++k) {
-      for (int i = 0; i < rover::kNumWheels; ++i) {
-        j.values(k, rover::kPsi1 + i) +=
+      for (int i = 0; i < r7::kNumWheels; ++i) {
+        j.values(k, r7::kPsi1 + i) +=
             speed * std::min(j.t[k] - creep_end, 0.0) / sim.log.geometry.wheels[i].radius;
       }
     }

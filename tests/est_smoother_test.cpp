@@ -67,6 +67,11 @@ template <typename T>
 bool sameBits(const T& a, const T& b) {
   return std::memcmp(&a, &b, sizeof(T)) == 0;
 }
+/// A wheel vector: its size and its used entries (the storage beyond size is not a value).
+bool sameBits(const rover::WheelVectord& a, const rover::WheelVectord& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
 
 /// Field by field (no struct padding): bitwise equal nodes.
 bool sameNode(const est::TrajectoryNode& a, const est::TrajectoryNode& b) {

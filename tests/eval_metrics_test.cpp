@@ -93,7 +93,7 @@ est::Trajectory trajectoryOf(const std::vector<Pose>& poses, const TruthGroups& 
     n.t = a.t;
     n.p_site = a.p;
     n.q_site_body = a.q;
-    n.xi.fill(g.xi.value_or(0.0));
+    n.xi = rover::WheelVectord::Constant(6, g.xi.value_or(0.0));
     n.bias = g.bias.value_or(Vec3d::Zero());
     if (covariance) n.covariance = 0.01 * Mat6d::Identity(), n.bias_sigma.setConstant(1e-3);
     tr.nodes.push_back(n);

@@ -17,9 +17,9 @@ using testing::randomVector;
 using testing::rocky7;
 
 JointVectord randomSuspension(std::mt19937& rng) {
-  JointVectord q = JointVectord::Zero();
+  JointVectord q = JointVectord::Zero(r7::kNumCoords);
   q.head<3>() = randomVector<3>(rng, 0.3);
-  q.segment<2>(kLambda1) = randomVector<2>(rng, 0.5);
+  q.segment<2>(r7::kLambda1) = randomVector<2>(rng, 0.5);
   q.tail<6>() = randomVector<6>(rng, 10.0);
   return q;
 }
@@ -30,17 +30,17 @@ TEST(RoverGeometry, LoadsRocky7FromUrdf) {
   for (const Wheel& w : g.wheels) EXPECT_DOUBLE_EQ(w.radius, 0.065);
   EXPECT_DOUBLE_EQ(g.turn_centre_x, -0.10);
   int mimics = 0;
-  for (const KinematicJoint& j : g.joints) mimics += j.multiplier == -1.0 && j.coord == kGamma0;
+  for (const KinematicJoint& j : g.joints) mimics += j.multiplier == -1.0 && j.coord == r7::kGamma0;
   EXPECT_EQ(mimics, 1) << "the right rocker follows the differential with multiplier −1";
 }
 
 // Joint angle zero: all six wheel centres in one plane parallel to the body x-y plane.
 TEST(RoverKinematics, ZeroAnglesPutWheelCentresInOnePlane) {
-  const auto kin = forwardKinematics<double>(rocky7(), JointVectord::Zero());
-  const Vec3d expected[kNumWheels] = {{0.25, 0.24, -0.12},  {0.0, 0.24, -0.12},
+  const auto kin = forwardKinematics<double>(rocky7(), JointVectord::Zero(r7::kNumCoords));
+  const Vec3d expected[r7::kNumWheels] = {{0.25, 0.24, -0.12},  {0.0, 0.24, -0.12},
                                       {-0.20, 0.24, -0.12}, {0.25, -0.24, -0.12},
                                       {0.0, -0.24, -0.12},  {-0.20, -0.24, -0.12}};
-  for (int i = 0; i < kNumWheels; ++i) {
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     EXPECT_LT((kin[i].T_body_wheel.p - expected[i]).norm(), 1e-15) << "wheel " << i + 1;
     EXPECT_LT((kin[i].T_body_wheel.R - Mat3d::Identity()).norm(), 1e-15);
   }
@@ -50,8 +50,8 @@ TEST(RoverKinematics, ZeroAnglesPutWheelCentresInOnePlane) {
 // the right one by −0.1 (differential); a rotation about +y by a takes (x, z) to
 // (x cos a + z sin a, −x sin a + z cos a).
 TEST(RoverKinematics, DifferentialRotatesRockersOppositely) {
-  JointVectord q = JointVectord::Zero();
-  q[kGamma0] = 0.1;
+  JointVectord q = JointVectord::Zero(r7::kNumCoords);
+  q[r7::kGamma0] = 0.1;
   const auto kin = forwardKinematics<double>(rocky7(), q);
   const double c = std::cos(0.1), s = std::sin(0.1);
   const Vec3d front_left(0.25 * c - 0.12 * s, 0.24, -0.25 * s - 0.12 * c);
@@ -68,9 +68,9 @@ TEST(RoverKinematics, SpatialJacobianMatchesFiniteDifferences) {
   for (int trial = 0; trial < 20; ++trial) {
     const JointVectord q = randomSuspension(rng);
     const auto kin = forwardKinematics<double>(geo, q);
-    for (int i = 0; i < kNumWheels; ++i) {
+    for (int i = 0; i < r7::kNumWheels; ++i) {
       const int d = geo.wheels[i].drive_joint;
-      for (int c = 0; c < kNumCoords; ++c) {
+      for (int c = 0; c < r7::kNumCoords; ++c) {
         const double h = 1e-6;
         JointVectord qp = q, qm = q;
         qp[c] += h;
@@ -82,7 +82,7 @@ TEST(RoverKinematics, SpatialJacobianMatchesFiniteDifferences) {
         Twistd col;
         col << pdot - w.cross(g0.p), w;
         EXPECT_LT((kin[i].J.col(c) - col).norm(), 1e-8)
-            << "wheel " << i + 1 << " coord " << kCoordNames[c];
+            << "wheel " << i + 1 << " coord " << rocky7().coords[static_cast<size_t>(c)].column;
       }
     }
   }
@@ -92,7 +92,7 @@ TEST(RoverKinematics, ContactAtZeroXiIsWheelBottom) {
   std::mt19937 rng(12);
   for (int trial = 0; trial < 10; ++trial) {
     const auto kin = forwardKinematics<double>(rocky7(), randomSuspension(rng));
-    for (int i = 0; i < kNumWheels; ++i) {
+    for (int i = 0; i < r7::kNumWheels; ++i) {
       const Posed& w = kin[i].T_body_wheel;
       const Posed l = contactFrame(w, 0.065, 0.0);
       EXPECT_LT((l.p - (w.p - 0.065 * w.R.col(2))).norm(), 1e-15);
@@ -107,11 +107,11 @@ TEST(RoverKinematics, ContactAtZeroXiIsWheelBottom) {
 
 TEST(SlipConstraint, RollingOnFlatGroundIsZero) {
   const RoverGeometry& geo = rocky7();
-  const auto kin = forwardKinematics<double>(geo, JointVectord::Zero());
+  const auto kin = forwardKinematics<double>(geo, JointVectord::Zero(r7::kNumCoords));
   const double v = 0.07;
-  JointVectord q_dot = JointVectord::Zero();
+  JointVectord q_dot = JointVectord::Zero(r7::kNumCoords);
   q_dot.tail<6>().setConstant(v / 0.065);
-  for (int i = 0; i < kNumWheels; ++i) {
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     const Vec4d t =
         slipConstraint<double>(kin[i].T_body_wheel, 0.065, wheelJointTwist(kin[i], q_dot),
                                Vec3d(v, 0, 0), Vec3d::Zero(), 0.0);
@@ -132,10 +132,10 @@ TEST(SlipConstraint, RollingOnTiltedPlaneIsZero) {
   const double v = 0.05;
   const Vec3d v_site = q_site_body * Vec3d(v, 0, 0);  // along the plane
   const Vec3d v_body = q_site_body.conjugate() * v_site;
-  const auto kin = forwardKinematics<double>(geo, JointVectord::Zero());
-  JointVectord q_dot = JointVectord::Zero();
+  const auto kin = forwardKinematics<double>(geo, JointVectord::Zero(r7::kNumCoords));
+  JointVectord q_dot = JointVectord::Zero(r7::kNumCoords);
   q_dot.tail<6>().setConstant(v / 0.065);
-  for (int i = 0; i < kNumWheels; ++i) {
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     const Vec4d t = slipConstraint<double>(
         kin[i].T_body_wheel, 0.065, wheelJointTwist(kin[i], q_dot), v_body, Vec3d::Zero(), 0.0);
     EXPECT_LT(t.norm(), 1e-15);
@@ -150,14 +150,14 @@ TEST(SlipConstraint, ArticulatedRollingOnLocalSlopesIsZero) {
   const RoverGeometry& geo = rocky7();
   std::mt19937 rng(13);
   for (int trial = 0; trial < 50; ++trial) {
-    JointVectord q = JointVectord::Zero();
+    JointVectord q = JointVectord::Zero(r7::kNumCoords);
     q.head<3>() = randomVector<3>(rng, 0.3);
     const auto kin = forwardKinematics<double>(geo, q);
-    JointVectord q_dot = JointVectord::Zero();
+    JointVectord q_dot = JointVectord::Zero(r7::kNumCoords);
     q_dot.head<3>() = randomVector<3>(rng, 0.2);
     const Vec3d v(0.1, 0.0, randomVector<1>(rng, 0.02)[0]);
     const Vec3d w(0.0, randomVector<1>(rng, 0.1)[0], 0.0);
-    for (int i = 0; i < kNumWheels; ++i) {
+    for (int i = 0; i < r7::kNumWheels; ++i) {
       const Twistd jt_no_drive = wheelJointTwist(kin[i], q_dot);
       const Posed& g = kin[i].T_body_wheel;
       const Vec3d u_body = v + jt_no_drive.head<3>() + (w + jt_no_drive.tail<3>()).cross(g.p);
@@ -165,7 +165,7 @@ TEST(SlipConstraint, ArticulatedRollingOnLocalSlopesIsZero) {
       ASSERT_LT(std::abs(u.y()), 1e-12);
       const double xi = std::atan2(u.z(), u.x());
       JointVectord q_dot_i = q_dot;
-      q_dot_i[kPsi1 + i] =
+      q_dot_i[r7::kPsi1 + i] =
           u.norm() / geo.wheels[i].radius - (g.R.transpose() * (w + jt_no_drive.tail<3>())).y();
       const Vec4d t = slipConstraint<double>(g, geo.wheels[i].radius,
                                              wheelJointTwist(kin[i], q_dot_i), v, w, xi);
@@ -180,22 +180,22 @@ TEST(SlipConstraint, ArticulatedRollingOnLocalSlopesIsZero) {
 TEST(SlipConstraint, TurnInPlaceGivesNominalSpinAndBogieSlip) {
   const RoverGeometry& geo = rocky7();
   const double wz = 0.2, xc = geo.turn_centre_x;
-  JointVectord q = JointVectord::Zero();
+  JointVectord q = JointVectord::Zero(r7::kNumCoords);
   const auto kin0 = forwardKinematics<double>(geo, q);
   // Steer each front wheel perpendicular to the radius from the turn centre.
   for (int i : {0, 3}) {
     const Vec3d p = kin0[i].T_body_wheel.p;
-    q[i == 0 ? kLambda1 : kLambda2] = -std::atan((p.x() - xc) / p.y());
+    q[i == 0 ? r7::kLambda1 : r7::kLambda2] = -std::atan((p.x() - xc) / p.y());
   }
   const auto kin = forwardKinematics<double>(geo, q);
   const Twistd V = nominalBodyTwist(geo, 0.0, wz);
-  JointVectord q_dot = JointVectord::Zero();
-  for (int i = 0; i < kNumWheels; ++i) {
+  JointVectord q_dot = JointVectord::Zero(r7::kNumCoords);
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     const Vec3d c = kin[i].T_body_wheel.p - 0.065 * kin[i].T_body_wheel.R.col(2);
     const Vec3d vc = V.head<3>() + V.tail<3>().cross(c);
-    q_dot[kPsi1 + i] = (kin[i].T_body_wheel.R.transpose() * vc).x() / 0.065;
+    q_dot[r7::kPsi1 + i] = (kin[i].T_body_wheel.R.transpose() * vc).x() / 0.065;
   }
-  for (int i = 0; i < kNumWheels; ++i) {
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     const Twistd jt = wheelJointTwist(kin[i], q_dot);
     const Vec4d t = slipConstraint<double>(kin[i].T_body_wheel, 0.065, jt, Vec3d(V.head<3>()),
                                            Vec3d(V.tail<3>()), 0.0);
@@ -212,8 +212,8 @@ TEST(SlipConstraint, JacobianMatchesNumericAtRandomStates) {
   std::mt19937 rng(14);
   for (int trial = 0; trial < 30; ++trial) {
     const auto kin = forwardKinematics<double>(geo, randomSuspension(rng));
-    const JointVectord q_dot = randomVector<kNumCoords>(rng, 1.0);
-    const int i = trial % kNumWheels;
+    const JointVectord q_dot = randomVector<r7::kNumCoords>(rng, 1.0);
+    const int i = trial % r7::kNumWheels;
     const Twistd jt = wheelJointTwist(kin[i], q_dot);
     Eigen::Matrix<double, 7, 1> x;
     x << randomVector<3>(rng, 0.2), randomVector<3>(rng, 0.5), randomVector<1>(rng, 0.6);
@@ -268,8 +268,8 @@ TEST(SlipConstraint, AnalyticJacobianMatchesJets) {
   std::mt19937 rng(17);
   for (int trial = 0; trial < 60; ++trial) {
     const auto kin = forwardKinematics<double>(geo, randomSuspension(rng));
-    const int i = trial % kNumWheels;
-    const Twistd jt = wheelJointTwist(kin[i], randomVector<kNumCoords>(rng, 1.0));
+    const int i = trial % r7::kNumWheels;
+    const Twistd jt = wheelJointTwist(kin[i], randomVector<r7::kNumCoords>(rng, 1.0));
     Eigen::Matrix<double, 7, 1> x;
     x << randomVector<3>(rng, 0.2), randomVector<3>(rng, 0.5), randomVector<1>(rng, 0.6);
     const auto f = [&](const auto& s) {

@@ -67,7 +67,7 @@ TEST(SimContactPlane, BodyFollowsThePlane) {
       solver.solve(1.0, 0.5, 0.0, Vec2d::Zero(), solver.initialGuess(1.0, 0.5, 0.0));
   EXPECT_NEAR(s.pitch, -0.15, 1e-9);
   EXPECT_NEAR(s.roll, 0.0, 1e-9);
-  EXPECT_LT(s.gamma.norm(), 1e-8);
+  EXPECT_LT(s.suspension.norm(), 1e-8);
   for (double xi : s.xi) EXPECT_NEAR(xi, 0.0, 1e-7);
 }
 

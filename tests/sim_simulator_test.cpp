@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "support/rocky7_coords.h"
 #include "support/jacobian_check.h"
 #include "traverse/core/error.h"
 #include "traverse/io/log_writer.h"
@@ -16,7 +17,7 @@
 namespace traverse::sim {
 namespace {
 
-using rover::kNumWheels;
+using r7::kNumWheels;
 
 std::filesystem::path datasets() {
   return std::filesystem::path(testing::sourceDir()) / "datasets";
@@ -150,9 +151,9 @@ TEST(SimSensors, NoiseStatisticsMatchConfiguration) {
     EXPECT_NEAR(sampleSigma(sim.log.sun->values.col(c)) / 0.004, 1.0, 0.05);
   for (int c = 0; c < 3; ++c)
     EXPECT_NEAR(sampleSigma(sim.log.accel->values.col(c)) / 0.02, 1.0, 0.05);
-  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kGamma1)) / 0.001, 1.0, 0.05);
-  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kLambda2)) / 0.002, 1.0, 0.05);
-  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(rover::kPsi5)) / 0.0005, 1.0, 0.05);
+  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(r7::kGamma1)) / 0.001, 1.0, 0.05);
+  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(r7::kLambda2)) / 0.002, 1.0, 0.05);
+  EXPECT_NEAR(sampleSigma(sim.log.joints.values.col(r7::kPsi5)) / 0.0005, 1.0, 0.05);
   // Gyro mean = configured bias.
   EXPECT_NEAR(sim.log.gyro.values.col(2).mean(), 0.002, 4 * 0.003 / std::sqrt(sim.log.gyro.size()));
 }

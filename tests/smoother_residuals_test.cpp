@@ -23,6 +23,7 @@
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
 
+#include "support/rocky7_coords.h"
 #include "support/jacobian_check.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/rover/kinematics.h"
@@ -612,19 +613,19 @@ TEST(SmootherResidualSlip, JacobiansMatchNumericAndAutodiffTwin) {
   std::mt19937 rng(6);
   for (int trial = 0; trial < 4 * kTrials; ++trial) {
     SCOPED_TRACE(trial);
-    rover::JointVectord q = rover::JointVectord::Zero();
+    rover::JointVectord q = rover::JointVectord::Zero(r7::kNumCoords);
     q.head<3>() = randomVector<3>(rng, 0.3);
-    q.segment<2>(rover::kLambda1) = randomVector<2>(rng, 0.5);
+    q.segment<2>(r7::kLambda1) = randomVector<2>(rng, 0.5);
     const auto kin = rover::forwardKinematics<double>(geo, q);
-    const int i = trial % rover::kNumWheels;
-    const Twistd jt = rover::wheelJointTwist(kin[i], randomVector<rover::kNumCoords>(rng, 1.0));
+    const int i = trial % r7::kNumWheels;
+    const Twistd jt = rover::wheelJointTwist(kin[i], randomVector<r7::kNumCoords>(rng, 1.0));
     // Σ: the slip noise plus a random correlated part (the joint-rate noise carried through).
     Eigen::Matrix4d A = randomVector<16>(rng, 0.003).reshaped(4, 4);
     const Eigen::Matrix4d cov =
         Vec4d(0.004, 0.004, 0.004, 0.02).array().square().matrix().asDiagonal().toDenseMatrix() +
         A * A.transpose();
     const Eigen::Matrix4d L_inv = sqrtInformation<4>(cov, "slip");
-    const SlipResidual cf(i, kin[i].T_body_wheel, geo.wheels[i].radius, jt,
+    const SlipResidual cf(i, r7::kNumWheels, kin[i].T_body_wheel, geo.wheels[i].radius, jt,
                           randomVector<4>(rng, 0.02), L_inv);
     const Vec3d v = randomVector<3>(rng, 0.1), w = randomVector<3>(rng, 0.1);
     const Vec6d xi = randomVector<6>(rng, 0.3);
@@ -660,9 +661,9 @@ TEST(SmootherResidualSlip, JacobiansMatchNumericAndAutodiffTwin) {
     // the same function bit for bit.
     const SlipWheelData data{kin[i].T_body_wheel, geo.wheels[i].radius, jt,
                              randomVector<4>(rng, 0.02), L_inv};
-    const SlipResidual owning(i, data.T_body_wheel, data.radius, data.joint_twist,
+    const SlipResidual owning(i, r7::kNumWheels, data.T_body_wheel, data.radius, data.joint_twist,
                               data.nominal_slip, data.sqrt_info);
-    const SlipResidual referring(i, &data);
+    const SlipResidual referring(i, r7::kNumWheels, &data);
     const Params at{block(v), block(w), block(xi)};
     EXPECT_EQ(evaluate(owning, at), evaluate(referring, at));
     const auto J_own = reportedJacobians(owning, at, {false, false, false});
@@ -677,20 +678,20 @@ TEST(SmootherResidualSlip, JacobiansMatchNumericAndAutodiffTwin) {
 // forward at v, t = (0.07, 0, 0, 0), r = sqrt_info (nominal − t) = (−17.5, 2.5, 0, 1).
 TEST(SmootherResidualSlip, HandChecked) {
   const rover::RoverGeometry& geo = rocky7();
-  const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero());
+  const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero(r7::kNumCoords));
   const double v = 0.07, radius = geo.wheels[0].radius;
   ASSERT_DOUBLE_EQ(radius, 0.065);
-  rover::JointVectord q_dot = rover::JointVectord::Zero();
+  rover::JointVectord q_dot = rover::JointVectord::Zero(r7::kNumCoords);
   q_dot.tail<6>().setConstant(v / radius);
   const Eigen::Matrix4d sqrt_info = Vec4d(250, 250, 250, 50).asDiagonal();
   const Vec4d nominal(0, 0.01, 0, 0.02);
   const Params state = {{v, 0, 0}, {0, 0, 0}, {0, 0, 0, 0, 0, 0}};
-  for (int i = 0; i < rover::kNumWheels; ++i) {
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     SCOPED_TRACE(i);
-    const SlipResidual rolling(i, kin[i].T_body_wheel, radius,
+    const SlipResidual rolling(i, r7::kNumWheels, kin[i].T_body_wheel, radius,
                                rover::wheelJointTwist(kin[i], q_dot), nominal, sqrt_info);
     EXPECT_LT((evaluate(rolling, state) - Eigen::Vector4d(0, 2.5, 0, 1)).norm(), 1e-12);
-    const SlipResidual locked(i, kin[i].T_body_wheel, radius, Twistd::Zero(), nominal, sqrt_info);
+    const SlipResidual locked(i, r7::kNumWheels, kin[i].T_body_wheel, radius, Twistd::Zero(), nominal, sqrt_info);
     EXPECT_LT((evaluate(locked, state) - Eigen::Vector4d(-17.5, 2.5, 0, 1)).norm(), 1e-12);
   }
 }
@@ -881,12 +882,12 @@ TEST(SmootherResidualMarkovComponent, MatchesTheBlockRowAndIsHandChecked) {
                               y1 = block(randomVector<6>(rng, 0.3));
     const Eigen::VectorXd rows = evaluate(block6, {y0, y1});
     for (int i = 0; i < 6; ++i) {
-      const MarkovComponentResidual<6> one(i, dt, a, qd);
+      const MarkovComponentResidual one(i, 6, dt, a, qd);
       EXPECT_NEAR(evaluate(one, {y0, y1})[0], rows[i], 1e-12) << i;
       checkCostFunctionJacobians(one, {y0, y1}, {false, false});
     }
   }
-  const MarkovComponentResidual<6> wheel3(3, 0.1, a, qd);
+  const MarkovComponentResidual wheel3(3, 6, 0.1, a, qd);
   const double phi = std::exp(-0.05), sigma = std::sqrt(qd * (1 - std::exp(-0.1)));
   std::vector<double> y0(6, 0.0), y1(6, 0.0);
   y0[3] = 0.2, y1[3] = 0.5, y0[1] = y1[4] = 9.0;  // other wheels do not enter
@@ -961,13 +962,13 @@ TEST(SmootherResidualCollector, EqualFunctorsShareACostFunctionAndTheCostIsCeres
     h[k] = {
         {n.q, 4, {node, C::kAttitude, 3}, &manifold}, {n.x, 3, {node, C::kPosition, 3}, nullptr},
         {n.v, 3, {node, C::kVelocity, 3}, nullptr},   {n.w, 3, {node, C::kRate, 3}, nullptr},
-        {n.xi, 6, {node, C::kContact, 6}, nullptr},   {n.b, 3, {node, C::kBias, 3}, nullptr}};
+        {n.xi, 6, {node, C::kContact, 6}, nullptr},   {n.b, 3, {node, C::bias(6), 3}, nullptr}};
   }
   ceres::CauchyLoss loss(1.0);
   ResidualCollector out;
   CostMemo<AttitudeProcessResidual> attitude;
   CostMemo<MarkovProcess<3>> rate;
-  std::array<CostMemo<MarkovComponent<6>>, rover::kNumWheels> contact;
+  std::vector<CostMemo<MarkovComponent>> contact(r7::kNumWheels);
   const Vec3d info(100, 200, 300), cmd(0.01, 0.0, -0.02);
   addAttitudeProcess(out, attitude, 0.05, info, h[0], h[1]);          // 0: new
   addAttitudeProcess(out, attitude, 0.05, info, h[1], h[2]);          // 1: equal functor, shared

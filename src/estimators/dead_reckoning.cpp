@@ -55,9 +55,8 @@ Trajectory deadReckoning(const io::TraverseLog& log, const Segmentation& seg,
     const double roll = w && w->has_gravity ? w->roll_pitch.roll_pitch.x() : rpy0.x();
     const double pitch = w && w->has_gravity ? w->roll_pitch.roll_pitch.y() : rpy0.y();
     double speed = 0.0;
-    for (int i = 0; i < rover::kNumWheels; ++i)
-      speed += log.geometry.wheels[i].radius * rates(k, rover::kPsi1 + i);
-    speed /= rover::kNumWheels;
+    for (const rover::Wheel& w : log.geometry.wheels) speed += w.radius * rates(k, w.coord);
+    speed /= log.geometry.numWheels();
     const double rate = gyroZ(log.gyro, t) - bias;
     if (k > 0) {  // trapezoid on heading and on the horizontal velocity
       const double dt = t - j.t[k - 1];
@@ -76,6 +75,7 @@ Trajectory deadReckoning(const io::TraverseLog& log, const Segmentation& seg,
     n.v_body = Vec3d(speed, -rate * xc, 0);
     n.w_body = Vec3d(0, 0, rate);
     n.bias = Vec3d(0, 0, bias);
+    n.xi = rover::WheelVectord::Zero(log.geometry.numWheels());
   }
   return tr;
 }

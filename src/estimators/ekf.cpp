@@ -79,7 +79,9 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       geometry_(geometry),
       options_(options),
       three_axis_(three_axis_gyro),
-      has_cmd_(has_cmd) {
+      has_cmd_(has_cmd),
+      nw_(geometry.numWheels()),
+      n_(ekfStates(geometry.numWheels())) {
   S_ =
       (three_axis_ ? sensors::GyroAxes::threeAxis() : sensors::GyroAxes::headingOnly()).selection();
   gate2_ = chiSquareQuantile(options.gate_probability, 2);
@@ -87,8 +89,8 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   q_ = init.q_site_body;
   x_ = init.p_site;
   b_ = init.bias;
-  w_p_.setZero(), v_p_.setZero(), xi_.setZero();
-  P_.setZero();
+  w_p_.setZero(), v_p_.setZero(), xi_.setZero(nw_);
+  P_.setZero(n_, n_);
   P_.block<3, 3>(I::kTheta, I::kTheta) = init.attitude_sigma.cwiseAbs2().asDiagonal();
   P_.block<3, 3>(I::kRate, I::kRate)
       .diagonal()
@@ -99,7 +101,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   P_.block<3, 3>(I::kVel, I::kVel)
       .diagonal()
       .setConstant(std::pow(options.initial_velocity_sigma_mps, 2));
-  P_.block<6, 6>(I::kXi, I::kXi)
+  P_.block(I::kXi, I::kXi, nw_, nw_)
       .diagonal()
       .setConstant(std::pow(options.initial_contact_sigma_rad, 2));
   P_.block<3, 3>(I::kBias, I::kBias) = init.bias_sigma.cwiseAbs2().asDiagonal();
@@ -144,14 +146,14 @@ void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
   const Vec3d v = out->v = d.accel_driven ? v_p_ : velocity<double>(v_p_, in);
   const Mat3d R = q_.toRotationMatrix();
   EkfMatrix& F = out->F;
-  F.setZero();
+  F.setZero(n_, n_);
   F.block<3, 3>(I::kTheta, I::kTheta) = -so3::skew(w);
   F.block<3, 3>(I::kTheta, I::kRate).setIdentity();
   if (hybrid) F.block<3, 3>(I::kTheta, I::kBias) = -S_;
   F.block<3, 3>(I::kRate, I::kRate) = d.a_w.asDiagonal();
   F.block<3, 3>(I::kPos, I::kTheta) = -R * so3::skew(v);
   F.block<3, 3>(I::kPos, I::kVel) = R;
-  F.block<6, 6>(I::kXi, I::kXi).diagonal().setConstant(d.a_xi);
+  F.block(I::kXi, I::kXi, nw_, nw_).diagonal().setConstant(d.a_xi);
   out->v_dot.setZero();
   if (d.accel_driven) {  // O-4, linearised with Jets through the shared accelerometer model
     Eigen::Matrix<double, 12, 1> s;
@@ -191,7 +193,7 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   const auto& pc = config_.process;
 
   // Continuous noise densities.
-  EkfVector qc = EkfVector::Zero();
+  EkfVector qc = EkfVector::Zero(n_);
   const double n_w = pc.rate_noise_rad_s2_per_sqrt_hz;
   for (int a = 0; a < 3; ++a) {
     const bool measured = hybrid && S_(a, a) > 0;
@@ -203,7 +205,7 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   qc.segment<3>(I::kVel).setConstant(accel_driven
                                          ? std::pow(config_.accel.noise_mps2, 2) * accel_period_
                                          : std::pow(pc.velocity_noise_mps2_per_sqrt_hz, 2));
-  qc.segment<6>(I::kXi).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
+  qc.segment(I::kXi, nw_).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
   qc.segment<3>(I::kBias).setConstant(std::pow(config_.gyro.bias_random_walk_rad_s_per_sqrt_s, 2));
 
   detail::propagateCovarianceInPlace(lin.F, dt, &P_);
@@ -236,14 +238,15 @@ void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P_inou
     int i, j;
     double v;
   };
-  std::array<Entry, kEkfStates * kEkfStates> nz;
+  const int n = static_cast<int>(F.rows());
+  std::array<Entry, kMaxEkfStates * kMaxEkfStates> nz;
   int n_nz = 0;
-  for (int j = 0; j < kEkfStates; ++j) {
-    for (int i = 0; i < kEkfStates; ++i) {
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
       if (F(i, j) != 0.0) nz[n_nz++] = {i, j, F(i, j) * dt};
     }
   }
-  EkfMatrix A = EkfMatrix::Zero();  // F dt + ½ (F dt)², the square over the nonzeros
+  EkfMatrix A = EkfMatrix::Zero(n, n);  // F dt + ½ (F dt)², the square over the nonzeros
   for (int a = 0; a < n_nz; ++a) {
     A(nz[a].i, nz[a].j) += nz[a].v;
     for (int b = 0; b < n_nz; ++b) {
@@ -251,13 +254,13 @@ void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P_inou
     }
   }
   n_nz = 0;
-  for (int j = 0; j < kEkfStates; ++j) {
-    for (int i = 0; i < kEkfStates; ++i) {
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
       if (A(i, j) != 0.0) nz[n_nz++] = {i, j, A(i, j)};
     }
   }
   // Column operations only (Eigen is column-major): B = P Aᵀ, D = Bᵀ = A P, E = D Aᵀ = A P Aᵀ.
-  EkfMatrix B = EkfMatrix::Zero(), E = EkfMatrix::Zero();
+  EkfMatrix B = EkfMatrix::Zero(n, n), E = EkfMatrix::Zero(n, n);
   for (int a = 0; a < n_nz; ++a) B.col(nz[a].i).noalias() += nz[a].v * P.col(nz[a].j);
   const EkfMatrix D = B.transpose();
   for (int a = 0; a < n_nz; ++a) E.col(nz[a].i).noalias() += nz[a].v * D.col(nz[a].j);
@@ -265,30 +268,29 @@ void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P_inou
 }
 
 template <int M>
-void innovation(const EkfMatrix& P, const Eigen::Matrix<double, M, kEkfStates>& H,
-                const Eigen::Matrix<double, M, M>& R, Eigen::Matrix<double, kEkfStates, M>* PHt,
-                Eigen::Matrix<double, M, M>* S) {
-  int cols[kEkfStates];
+void innovation(const EkfMatrix& P, const EkfRows<M>& H, const Eigen::Matrix<double, M, M>& R,
+                EkfCols<M>* PHt, Eigen::Matrix<double, M, M>* S) {
+  int cols[kMaxEkfStates];
   int n = 0;
-  for (int c = 0; c < kEkfStates; ++c) {
+  for (int c = 0; c < H.cols(); ++c) {
     if (!H.col(c).isZero(0.0)) cols[n++] = c;
   }
-  PHt->setZero();
+  PHt->setZero(P.rows(), M);
   for (int j = 0; j < n; ++j) PHt->noalias() += P.col(cols[j]) * H.col(cols[j]).transpose();
   *S = R;
   for (int j = 0; j < n; ++j) S->noalias() += H.col(cols[j]) * PHt->row(cols[j]);
 }
 
 template <int M>
-void josephUpdate(EkfMatrix* P, const Eigen::Matrix<double, kEkfStates, M>& K,
-                  const Eigen::Matrix<double, kEkfStates, M>& PHt,
+void josephUpdate(EkfMatrix* P, const EkfCols<M>& K, const EkfCols<M>& PHt,
                   const Eigen::Matrix<double, M, M>& S) {
   // (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ with HP = (P Hᵀ)ᵀ: rank-M
   // products instead of two 21×21×21 ones, on the lower triangle with contiguous M-vectors.
-  const Eigen::Matrix<double, M, kEkfStates> Kt = K.transpose(), HP = PHt.transpose();
-  const Eigen::Matrix<double, M, kEkfStates> SKt = S * Kt;
-  for (int j = 0; j < kEkfStates; ++j) {
-    for (int i = j; i < kEkfStates; ++i) {
+  const EkfRows<M> Kt = K.transpose(), HP = PHt.transpose();
+  const EkfRows<M> SKt = S * Kt;
+  const auto n = static_cast<int>(P->rows());
+  for (int j = 0; j < n; ++j) {
+    for (int i = j; i < n; ++i) {
       (*P)(i, j) += Kt.col(i).dot(SKt.col(j)) - Kt.col(i).dot(HP.col(j)) - HP.col(i).dot(Kt.col(j));
     }
   }
@@ -302,10 +304,9 @@ Mat3d resetJacobian(const Vec3d& dtheta) {
 }  // namespace detail
 
 template <int M>
-bool Ekf::update(const Eigen::Matrix<double, M, 1>& r,
-                 const Eigen::Matrix<double, M, kEkfStates>& H,
+bool Ekf::update(const Eigen::Matrix<double, M, 1>& r, const EkfRows<M>& H,
                  const Eigen::Matrix<double, M, M>& R, double gate) {
-  Eigen::Matrix<double, kEkfStates, M> PHt;
+  EkfCols<M> PHt;
   Eigen::Matrix<double, M, M> S;
   detail::innovation<M>(P_, H, R, &PHt, &S);
   // S is M×M with M ≤ 4: LLT checks it is positive definite, Eigen's closed-form inverse gives
@@ -313,7 +314,7 @@ bool Ekf::update(const Eigen::Matrix<double, M, 1>& r,
   if (Eigen::LLT<Eigen::Matrix<double, M, M>>(S).info() != Eigen::Success) return false;
   const Eigen::Matrix<double, M, M> S_inv = S.inverse();
   if (gate > 0 && r.dot(S_inv * r) > gate) return false;
-  const Eigen::Matrix<double, kEkfStates, M> K = PHt * S_inv;
+  const EkfCols<M> K = PHt * S_inv;
   detail::josephUpdate<M>(&P_, K, PHt, S);
   absorb(K * r);
   return true;
@@ -325,12 +326,12 @@ void Ekf::absorb(const EkfVector& dx) {
   w_p_ += dx.segment<3>(I::kRate);
   x_ += dx.segment<3>(I::kPos);
   v_p_ += dx.segment<3>(I::kVel);
-  xi_ += dx.segment<6>(I::kXi);
+  xi_ += dx.segment(I::kXi, nw_);
   b_ += dx.segment<3>(I::kBias);
   // Reset Jacobian of the attitude error: δθ⁺ ≈ (I − ½[dθ]×) δθ.
   const Mat3d G = detail::resetJacobian(dtheta);
-  P_.block<3, kEkfStates>(I::kTheta, 0) = G * P_.block<3, kEkfStates>(I::kTheta, 0);
-  P_.block<kEkfStates, 3>(0, I::kTheta) = P_.block<kEkfStates, 3>(0, I::kTheta) * G.transpose();
+  P_.middleRows<3>(I::kTheta) = G * P_.middleRows<3>(I::kTheta);
+  P_.middleCols<3>(I::kTheta) = P_.middleCols<3>(I::kTheta) * G.transpose();
 }
 
 Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample& js, int i,
@@ -369,7 +370,7 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
   // (then it is part of the measurement function and is differentiated with it).
   const Twistd cmd_twist = rover::nominalBodyTwist(geometry_, in.v_cmd.x(), in.w_cmd.z());
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
-  for (int i = 0; i < rover::kNumWheels; ++i) {
+  for (int i = 0; i < nw_; ++i) {
     // Re-linearise at the state the previous wheel's update left (sequential processing).
     Eigen::Matrix<double, 7, 1> s;
     s << v_now(), omega<double>(w_p_, b_, in), xi_[i];
@@ -379,7 +380,7 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
         slipUpdateResidual(geometry_, js, i, has_cmd_ ? &cmd_twist : nullptr, s, &J, &Jt);
     const Eigen::Matrix4d Ri = rover::slipCovariance(config_.slip_noise, js, i, s.head<3>(),
                                                      s.segment<3>(3), Jt.leftCols<6>());
-    Eigen::Matrix<double, 4, kEkfStates> H = Eigen::Matrix<double, 4, kEkfStates>::Zero();
+    EkfRows<4> H = EkfRows<4>::Zero(4, n_);
     H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
     H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
     if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * S_;
@@ -403,7 +404,7 @@ void Ekf::updateSun(const Vec2d& s_m, const Vec3d& sun_site) {
                                             sun_site);
       },
       Vec3d::Zero().eval(), &h, &J);
-  Eigen::Matrix<double, 2, kEkfStates> H = Eigen::Matrix<double, 2, kEkfStates>::Zero();
+  EkfRows<2> H = EkfRows<2>::Zero(2, n_);
   H.block<2, 3>(0, I::kTheta) = J;
   const double n2 = config_.sun_sensor.noise * config_.sun_sensor.noise;
   ++stats_.sun_updates;
@@ -419,7 +420,7 @@ void Ekf::gyroAxisUpdates(const Vec3d& w_m, bool at_rest, long* count) {
   const double n2 = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s;
   for (int a = 0; a < 3; ++a) {
     if (S_(a, a) == 0) continue;
-    Eigen::Matrix<double, 1, kEkfStates> H = Eigen::Matrix<double, 1, kEkfStates>::Zero();
+    EkfRows<1> H = EkfRows<1>::Zero(1, n_);
     H(0, I::kBias + a) = 1.0;
     if (!at_rest) H(0, I::kRate + a) = 1.0;
     const double predicted = b_[a] + (at_rest ? 0.0 : w_p_[a] + last_w_cmd_[a]);
@@ -437,7 +438,7 @@ void Ekf::updateZeroVelocity(const EkfInputs& in) {
   const bool accel_driven =
       options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
   const Vec3d v = accel_driven ? v_p_ : velocity<double>(v_p_, in);
-  Eigen::Matrix<double, 3, kEkfStates> H = Eigen::Matrix<double, 3, kEkfStates>::Zero();
+  EkfRows<3> H = EkfRows<3>::Zero(3, n_);
   H.block<3, 3>(0, I::kVel).setIdentity();
   const double s2 = options_.zero_velocity_sigma_mps * options_.zero_velocity_sigma_mps;
   update<3>(Vec3d(-v), H, Mat3d::Identity() * s2, 0.0);
@@ -449,7 +450,7 @@ void Ekf::updateZeroRate(const EkfInputs& in) {
   // (K-2), ω_p, is zero. (With the gyro-driven model, ω = S(ω_m − b) + ω_p; putting the whole
   // ω = 0 would let ω_p soak up the bias — updateRestBias gives the bias its own measurement.)
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
-  Eigen::Matrix<double, 3, kEkfStates> H = Eigen::Matrix<double, 3, kEkfStates>::Zero();
+  EkfRows<3> H = EkfRows<3>::Zero(3, n_);
   H.block<3, 3>(0, I::kRate).setIdentity();
   const Vec3d predicted = hybrid ? w_p_ : Vec3d(in.w_cmd + w_p_);
   const double s2 = options_.zero_rate_sigma_rad_s * options_.zero_rate_sigma_rad_s;
@@ -470,7 +471,7 @@ void Ekf::updateGravity(const sensors::RollPitchMeasurement& m) {
         return sensors::gravityRollPitchPredict<T>(so3::boxplus(Quat<T>(q_.cast<T>()), Vec3<T>(d)));
       },
       Vec3d::Zero().eval(), &h, &J);
-  Eigen::Matrix<double, 2, kEkfStates> H = Eigen::Matrix<double, 2, kEkfStates>::Zero();
+  EkfRows<2> H = EkfRows<2>::Zero(2, n_);
   H.block<2, 3>(0, I::kTheta) = J;
   const Vec2d r(so3::wrapAngle(m.roll_pitch.x() - h.x()), so3::wrapAngle(m.roll_pitch.y() - h.y()));
   update<2>(r, H, m.covariance, 0.0);
@@ -486,7 +487,7 @@ TrajectoryNode Ekf::node(double t, const EkfInputs& in) const {
   n.q_site_body = q_;
   n.v_body = accel_driven ? v_p_ : velocity<double>(v_p_, in);
   n.w_body = omega<double>(w_p_, b_, in);
-  for (int i = 0; i < rover::kNumWheels; ++i) n.xi[static_cast<size_t>(i)] = xi_[i];
+  n.xi = xi_;
   n.bias = b_;
   n.bias_sigma = P_.block<3, 3>(I::kBias, I::kBias).diagonal().cwiseSqrt();
   n.covariance.topLeftCorner<3, 3>() = P_.block<3, 3>(I::kPos, I::kPos);
@@ -529,12 +530,23 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
   const double dt = medianPeriod(j);
   Eigen::MatrixXd angles = j.values;
   Eigen::MatrixXd rates = rover::jointRates(t, angles, {h});
+  const rover::RoverGeometry& geo = log.geometry;
+  const std::vector<int> steering = geo.coordsOfKind(rover::CoordKind::kSteering);
+  const std::vector<int> suspension = geo.coordsOfKind(rover::CoordKind::kSuspension);
+  const auto gather = [&](const std::vector<int>& cols) {
+    Eigen::MatrixXd m(j.size(), static_cast<Eigen::Index>(cols.size()));
+    for (size_t c = 0; c < cols.size(); ++c) m.col(static_cast<Eigen::Index>(c)) = j.values.col(cols[c]);
+    return m;
+  };
   // Steering: a wider window (rover.yaml steering_filter_window_s) for both angle and rate.
   const int hs = std::max(h, static_cast<int>(std::lround(0.5 * js.steering_filter_window_s / dt)));
-  const rover::SmoothedJoints steer =
-      rover::smoothJoints(t, j.values.middleCols<2>(rover::kLambda1), {hs});
-  angles.middleCols<2>(rover::kLambda1) = steer.values;
-  rates.middleCols<2>(rover::kLambda1) = steer.rates;
+  if (!steering.empty()) {
+    const rover::SmoothedJoints steer = rover::smoothJoints(t, gather(steering), {hs});
+    for (size_t c = 0; c < steering.size(); ++c) {
+      angles.col(steering[c]) = steer.values.col(static_cast<Eigen::Index>(c));
+      rates.col(steering[c]) = steer.rates.col(static_cast<Eigen::Index>(c));
+    }
+  }
   // Suspension rates: a fit over a window fixed in time (rover.yaml suspension_filter_window_s,
   // never narrower than the other joints'). A suspension angle enters a slip update twice, in
   // the wheel frames (the angle as logged) and through the rate, and the rate of a neighbouring
@@ -544,32 +556,43 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
   // samples (slow-onset at 50 Hz, docs/results.md). Summed over the neighbours it falls as 1/h.
   const int hg =
       std::max(h, static_cast<int>(std::lround(0.5 * js.suspension_filter_window_s / dt)));
-  rates.leftCols<rover::kLambda1>() =
-      rover::jointRates(t, j.values.leftCols<rover::kLambda1>(), {hg});
+  if (!suspension.empty()) {
+    const Eigen::MatrixXd r = rover::jointRates(t, gather(suspension), {hg});
+    for (size_t c = 0; c < suspension.size(); ++c)
+      rates.col(suspension[c]) = r.col(static_cast<Eigen::Index>(c));
+  }
   // Joint-rate noise of the smoothing-and-differencing filter (rover/joint_rates.h).
   const double s_steer = js.steeringNoise();
-  rover::JointVectord rate_var;
-  rate_var.head<rover::kLambda1>().setConstant(std::pow(js.angle_noise_rad / dt, 2) *
-                                               rover::smoothedRateVarianceFactor(hg));
-  rate_var.segment<2>(rover::kLambda1)
-      .setConstant(std::pow(s_steer / dt, 2) * rover::smoothedRateVarianceFactor(hs));
-  rate_var.tail<rover::kNumWheels>().setConstant(std::pow(js.wheel_noise_rad / dt, 2) *
-                                                 rover::smoothedRateVarianceFactor(h));
+  rover::JointVectord rate_var(geo.numCoords());
+  for (int c = 0; c < geo.numCoords(); ++c) {
+    switch (geo.coords[static_cast<size_t>(c)].kind) {
+      case rover::CoordKind::kSuspension:
+        rate_var[c] =
+            std::pow(js.angle_noise_rad / dt, 2) * rover::smoothedRateVarianceFactor(hg);
+        break;
+      case rover::CoordKind::kSteering:
+        rate_var[c] = std::pow(s_steer / dt, 2) * rover::smoothedRateVarianceFactor(hs);
+        break;
+      case rover::CoordKind::kDrive:
+        rate_var[c] = std::pow(js.wheel_noise_rad / dt, 2) * rover::smoothedRateVarianceFactor(h);
+        break;
+    }
+  }
   const double steer_var = s_steer * s_steer * rover::smoothedValueVarianceFactor(hs);
+  const int nw = geo.numWheels();
   std::vector<JointSample> out(static_cast<size_t>(j.size()));
   for (Eigen::Index k = 0; k < j.size(); ++k) {
     const rover::JointVectord q = angles.row(k).transpose();
     const rover::JointVectord q_dot = rates.row(k).transpose();
-    const auto kin = rover::forwardKinematics<double>(log.geometry, q);
+    const auto kin = rover::forwardKinematics<double>(geo, q);
     JointSample& s = out[static_cast<size_t>(k)];
     s.t = j.t[k];
-    for (int i = 0; i < rover::kNumWheels; ++i) {
+    s.resize(nw);
+    for (int i = 0; i < nw; ++i) {
       s.T_body_wheel[i] = kin[i].T_body_wheel;
       s.joint_twist[i] = rover::wheelJointTwist(kin[i], q_dot);
       s.joint_twist_covariance[i] = kin[i].J * rate_var.asDiagonal() * kin[i].J.transpose();
-      const bool steered =
-          kin[i].J.col(rover::kLambda1).any() || kin[i].J.col(rover::kLambda2).any();
-      s.steering_variance[i] = steered ? steer_var : 0.0;
+      s.steering_variance[i] = geo.wheels[i].steered ? steer_var : 0.0;
     }
   }
   return out;
@@ -641,15 +664,12 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
 
 // The measurement sizes the filter uses (and the tests call), and the double rate model.
 #define TRAVERSE_EKF_INSTANTIATE_UPDATE(M)                                                       \
-  template void detail::innovation<M>(                                                           \
-      const EkfMatrix&, const Eigen::Matrix<double, M, kEkfStates>&,                             \
-      const Eigen::Matrix<double, M, M>&, Eigen::Matrix<double, kEkfStates, M>*,                 \
-      Eigen::Matrix<double, M, M>*);                                                             \
-  template void detail::josephUpdate<M>(EkfMatrix*, const Eigen::Matrix<double, kEkfStates, M>&, \
-                                        const Eigen::Matrix<double, kEkfStates, M>&,             \
+  template void detail::innovation<M>(const EkfMatrix&, const EkfRows<M>&,                      \
+                                      const Eigen::Matrix<double, M, M>&, EkfCols<M>*,           \
+                                      Eigen::Matrix<double, M, M>*);                             \
+  template void detail::josephUpdate<M>(EkfMatrix*, const EkfCols<M>&, const EkfCols<M>&,        \
                                         const Eigen::Matrix<double, M, M>&);                     \
-  template bool Ekf::update<M>(const Eigen::Matrix<double, M, 1>&,                               \
-                               const Eigen::Matrix<double, M, kEkfStates>&,                      \
+  template bool Ekf::update<M>(const Eigen::Matrix<double, M, 1>&, const EkfRows<M>&,            \
                                const Eigen::Matrix<double, M, M>&, double);
 TRAVERSE_EKF_INSTANTIATE_UPDATE(1)
 TRAVERSE_EKF_INSTANTIATE_UPDATE(2)

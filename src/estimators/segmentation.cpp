@@ -171,10 +171,8 @@ Eigen::VectorXd wheelSpeeds(const io::TraverseLog& log, int half_window) {
       std::span<const double>(j.t.data(), static_cast<size_t>(j.size())), j.values,
       {half_window > 0 ? half_window : log.config.joints.rate_filter_half_window});
   Eigen::VectorXd speed = Eigen::VectorXd::Zero(j.size());
-  for (int i = 0; i < rover::kNumWheels; ++i) {
-    speed += log.geometry.wheels[i].radius * rates.col(rover::kPsi1 + i).cwiseAbs();
-  }
-  return speed / rover::kNumWheels;
+  for (const rover::Wheel& w : log.geometry.wheels) speed += w.radius * rates.col(w.coord).cwiseAbs();
+  return speed / log.geometry.numWheels();
 }
 
 bool Segmentation::atRest(double t) const {
@@ -243,10 +241,10 @@ void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
   // Each wheel on its own (a turn in place moves the wheels in opposite senses, so their mean
   // stays put): its angle's deviation from the core's mean angle, variance σ_ψ² (1 + 1/n_core).
   const double sw2 = std::pow(std::max(log.config.joints.wheel_noise_rad, kMinNoise), 2);
-  constexpr auto kWheels = static_cast<Eigen::Index>(rover::kNumWheels);
-  const auto wheel_angles = [&](Eigen::Index m) {
-    return j.values.row(m).segment<kWheels>(rover::kPsi1).transpose();
-  };
+  const int nw = log.geometry.numWheels();
+  Eigen::MatrixXd psi(j.size(), nw);  // the wheels' drive angles
+  for (int i = 0; i < nw; ++i) psi.col(i) = j.values.col(log.geometry.wheels[i].coord);
+  const auto wheel_angles = [&](Eigen::Index m) { return psi.row(m).transpose(); };
   for (Eigen::Index k = 0; k < n;) {
     if (!rest[static_cast<size_t>(k)]) {
       ++k;
@@ -264,8 +262,7 @@ void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
       const Eigen::RowVectorXd bias = g.values.middleRows(c0, c1 - c0 + 1).colwise().mean();
       // Wheels: the core's mean angle of each.
       const Eigen::Index j0 = nearest(j.t, g.t[c0]), j1 = nearest(j.t, g.t[c1]);
-      const Eigen::Matrix<double, kWheels, 1> ref =
-          j.values.middleRows(j0, j1 - j0 + 1).middleCols<kWheels>(rover::kPsi1).colwise().mean();
+      const Eigen::VectorXd ref = psi.middleRows(j0, j1 - j0 + 1).colwise().mean().transpose();
       const double vw = sw2 * (1.0 + 1.0 / static_cast<double>(j1 - j0 + 1));
       // Outward from the core; returns the innermost index (towards the edge) still consistent.
       auto scan = [&](Eigen::Index from, Eigen::Index to, int step) {
@@ -333,13 +330,13 @@ RestStatistic restStatistic(const io::TraverseLog& log, Eigen::Index a, Eigen::I
   // is one constant, not white, so averaging does not shrink it.
   const Eigen::Index j0 = nearest(j.t, g.t[a]), j1 = nearest(j.t, g.t[b]);
   const Eigen::Index quarter = std::max<Eigen::Index>((j1 - j0 + 1) / 4, 1);
-  for (int i = 0; i < rover::kNumWheels; ++i) {
-    const Eigen::Index c = rover::kPsi1 + i;
+  for (const rover::Wheel& w : log.geometry.wheels) {
+    const Eigen::Index c = w.coord;
     const double d = j.values.col(c).segment(j1 - quarter + 1, quarter).mean() -
                      j.values.col(c).segment(j0, quarter).mean();
     s.chi2 += d * d / (2 * sw2);
   }
-  s.dof = static_cast<int>(g.values.cols()) + rover::kNumWheels;
+  s.dof = static_cast<int>(g.values.cols()) + log.geometry.numWheels();
   return s;
 }
 
@@ -361,7 +358,7 @@ void testRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
   if (o.rest_test_probability <= 0) return;
   const io::Stream& g = log.gyro;
   const auto n = static_cast<Eigen::Index>(rest.size());
-  const int dof = static_cast<int>(g.values.cols()) + rover::kNumWheels;
+  const int dof = static_cast<int>(g.values.cols()) + log.geometry.numWheels();
   const double threshold = chiSquareQuantile(o.rest_test_probability, dof);
   auto refuse = [&](Eigen::Index a, Eigen::Index b, double chi2) {
     std::fill(rest.begin() + a, rest.begin() + b + 1, 0);

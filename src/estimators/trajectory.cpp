@@ -9,10 +9,10 @@
 namespace traverse::est {
 namespace {
 
-std::vector<std::string> columns(bool with_cov) {
+std::vector<std::string> columns(bool with_cov, int wheels) {
   std::vector<std::string> c = {"x",  "y",  "z",  "qw", "qx", "qy", "qz",
                                 "vx", "vy", "vz", "wx", "wy", "wz"};
-  for (int i = 1; i <= kNumWheels; ++i) c.push_back("xi" + std::to_string(i));
+  for (int i = 1; i <= wheels; ++i) c.push_back("xi" + std::to_string(i));
   for (const char* s : {"bx", "by", "bz"}) c.emplace_back(s);
   if (with_cov) {
     for (const char* s :
@@ -27,7 +27,8 @@ std::vector<std::string> columns(bool with_cov) {
 
 io::Stream toStream(const Trajectory& tr) {
   io::Stream s;
-  s.columns = columns(tr.has_covariance);
+  const int nw = tr.nodes.empty() ? 0 : static_cast<int>(tr.nodes.front().xi.size());
+  s.columns = columns(tr.has_covariance, nw);
   const auto n = static_cast<Eigen::Index>(tr.nodes.size());
   s.t.resize(n);
   s.values.resize(n, static_cast<Eigen::Index>(s.columns.size()));
@@ -40,12 +41,13 @@ io::Stream toStream(const Trajectory& tr) {
         nd.q_site_body.z();
     row.segment<3>(7) = nd.v_body.transpose();
     row.segment<3>(10) = nd.w_body.transpose();
-    for (int i = 0; i < kNumWheels; ++i) row[13 + i] = nd.xi[static_cast<size_t>(i)];
-    row.segment<3>(19) = nd.bias.transpose();
+    if (nd.xi.size() != static_cast<Eigen::Index>(nw)) throw std::logic_error(tr.name + ": nodes with different wheel counts");
+    row.segment(13, nw) = nd.xi.transpose();
+    row.segment<3>(13 + nw) = nd.bias.transpose();
     if (tr.has_covariance) {
       const Mat6d& C = nd.covariance;
-      for (int i = 0; i < 6; ++i) row[22 + i] = std::sqrt(std::max(0.0, C(i, i)));
-      row.segment<6>(28) << C(0, 1), C(0, 2), C(1, 2), C(3, 4), C(3, 5), C(4, 5);
+      for (int i = 0; i < 6; ++i) row[16 + nw + i] = std::sqrt(std::max(0.0, C(i, i)));
+      row.segment<6>(22 + nw) << C(0, 1), C(0, 2), C(1, 2), C(3, 4), C(3, 5), C(4, 5);
     }
   }
   return s;
@@ -55,7 +57,10 @@ Trajectory fromStream(const io::Stream& s, const std::string& name) {
   Trajectory tr;
   tr.name = name;
   tr.has_covariance = s.has("sx");
-  const auto expected = columns(tr.has_covariance);
+  int nw = 0;
+  while (s.has("xi" + std::to_string(nw + 1))) ++nw;
+  if (nw > rover::kMaxWheels) throw std::invalid_argument(name + ": too many xi columns");
+  const auto expected = columns(tr.has_covariance, nw);
   for (size_t c = 0; c < expected.size() && c < s.columns.size(); ++c) {
     if (s.columns[c] != expected[c])
       throw std::invalid_argument(name + ": unexpected column " + s.columns[c]);
@@ -69,16 +74,19 @@ Trajectory fromStream(const io::Stream& s, const std::string& name) {
     nd.q_site_body = Quatd(row[3], row[4], row[5], row[6]).normalized();
     nd.v_body = row.segment<3>(7).transpose();
     nd.w_body = row.segment<3>(10).transpose();
-    for (int i = 0; i < kNumWheels; ++i) nd.xi[static_cast<size_t>(i)] = row[13 + i];
-    nd.bias = row.segment<3>(19).transpose();
+    nd.xi = row.segment(13, nw).transpose();
+    nd.bias = row.segment<3>(13 + nw).transpose();
     if (tr.has_covariance) {
       Mat6d& C = nd.covariance;
       C.setZero();
-      for (int i = 0; i < 6; ++i) C(i, i) = row[22 + i] * row[22 + i];
+      for (int i = 0; i < 6; ++i) C(i, i) = row[16 + nw + i] * row[16 + nw + i];
       if (s.has("cxy")) {
-        C(0, 1) = C(1, 0) = row[28], C(0, 2) = C(2, 0) = row[29], C(1, 2) = C(2, 1) = row[30];
-        C(3, 4) = C(4, 3) = row[31], C(3, 5) = C(5, 3) = row[32], C(4, 5) = C(5, 4) = row[33];
+        const int o = 22 + nw;
+        C(0, 1) = C(1, 0) = row[o], C(0, 2) = C(2, 0) = row[o + 1], C(1, 2) = C(2, 1) = row[o + 2];
+        C(3, 4) = C(4, 3) = row[o + 3], C(3, 5) = C(5, 3) = row[o + 4];
+        C(4, 5) = C(5, 4) = row[o + 5];
       }
+
     }
   }
   return tr;

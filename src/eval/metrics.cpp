@@ -98,13 +98,19 @@ void addAttitudeMetrics(Metrics& m, const NodePairs& n) {
 
 void addStateMetrics(Metrics& m, const est::Trajectory& tr, const TruthTrajectory& truth) {
   const std::size_t count = tr.nodes.size();
-  if (truth.hasContactAngles()) {
+  // Contact angles: when truth and estimate have the same wheels (a truth for another rover
+  // is not compared).
+  if (truth.hasContactAngles() && count > 0 &&
+      truth.contactAngles(tr.nodes.front().t).size() == tr.nodes.front().xi.size()) {
     double sum_sq = 0.0;
+    std::size_t terms = 0;
     for (const est::TrajectoryNode& node : tr.nodes) {
-      const std::array<double, 6> xi = truth.contactAngles(node.t);
-      for (std::size_t w = 0; w < 6; ++w) sum_sq += std::pow(node.xi[w] - xi[w], 2);
+      const rover::WheelVectord xi = truth.contactAngles(node.t);
+      if (xi.size() != node.xi.size()) continue;
+      sum_sq += (node.xi - xi).squaredNorm();
+      terms += static_cast<std::size_t>(xi.size());
     }
-    m.set("contact_angle_rmse_deg", rootMean(sum_sq, 6 * count) * kRadToDeg);
+    if (terms > 0) m.set("contact_angle_rmse_deg", rootMean(sum_sq, terms) * kRadToDeg);
   }
   if (truth.hasBias()) {
     double sum_abs = 0.0;

@@ -29,7 +29,9 @@ TruthTrajectory::TruthTrajectory(const io::Stream& truth) {
   const auto pos = groupColumns(truth, {"x", "y", "z"});
   const auto quat = groupColumns(truth, {"qw", "qx", "qy", "qz"});
   if (pos.empty() || quat.empty()) throw std::invalid_argument("truth: needs x,y,z,qw,qx,qy,qz");
-  const auto xi = groupColumns(truth, {"xi1", "xi2", "xi3", "xi4", "xi5", "xi6"});
+  std::vector<int> xi;  // xi1..xiN: every wheel's contact angle
+  for (int i = 1; truth.has("xi" + std::to_string(i)); ++i) xi.push_back(truth.col("xi" + std::to_string(i)));
+  if (xi.size() > static_cast<size_t>(rover::kMaxWheels)) throw std::invalid_argument("truth: too many xi columns");
   const auto bias = groupColumns(truth, {"bx", "by", "bz"});
   const auto vel = groupColumns(truth, {"vx", "vy", "vz"});
   const auto rate = groupColumns(truth, {"wx", "wy", "wz"});
@@ -43,8 +45,8 @@ TruthTrajectory::TruthTrajectory(const io::Stream& truth) {
     const auto& v = truth.values;
     q_.push_back(Quatd(v(k, quat[0]), v(k, quat[1]), v(k, quat[2]), v(k, quat[3])).normalized());
     if (has_xi_) {
-      std::array<double, 6> a{};
-      for (std::size_t i = 0; i < 6; ++i) a[i] = v(k, xi[i]);
+      rover::WheelVectord a(static_cast<Eigen::Index>(xi.size()));
+      for (std::size_t i = 0; i < xi.size(); ++i) a[static_cast<Eigen::Index>(i)] = v(k, xi[i]);
       xi_.push_back(a);
     }
     if (has_bias_) bias_.push_back(row3(truth, k, bias));
@@ -79,13 +81,11 @@ Quatd TruthTrajectory::attitude(double t) const {
   return q_[b.i].slerp(b.a, q_[b.i + 1]).normalized();
 }
 
-std::array<double, 6> TruthTrajectory::contactAngles(double t) const {
+rover::WheelVectord TruthTrajectory::contactAngles(double t) const {
   if (!has_xi_) throw std::logic_error("truth has no contact angles");
   const Bracket b = locate(t);
   if (b.a == 0.0) return xi_[b.i];
-  std::array<double, 6> out{};
-  for (std::size_t w = 0; w < 6; ++w) out[w] = (1.0 - b.a) * xi_[b.i][w] + b.a * xi_[b.i + 1][w];
-  return out;
+  return (1.0 - b.a) * xi_[b.i] + b.a * xi_[b.i + 1];
 }
 
 Vec3d TruthTrajectory::bias(double t) const {

@@ -43,10 +43,18 @@ std::string quoted(std::string_view s) {
 
 // --- the contract's streams (docs/log-format.md) ---------------------------------------------
 
+/// truth.csv with the contact angles xi1..xiN of an N-wheel rover.
+HeaderLayout truthLayout(int wheels) {
+  Names xi;
+  for (int i = 1; i <= wheels; ++i) xi.push_back("xi" + std::to_string(i));
+  return {{"x", "y", "z", "qw", "qx", "qy", "qz"},
+          {xi, {"bx", "by", "bz"}, {"vx", "vy", "vz"}, {"wx", "wy", "wz"}}};
+}
+
 std::map<std::string, StreamSpec, std::less<>> makeLogSpecs() {
   std::map<std::string, StreamSpec, std::less<>> specs;
   specs["gyro.csv"] = {{{{"wz"}, {}}, {{"wx", "wy", "wz"}, {}}}, {}};
-  specs["joints.csv"] = {{{Names(rover::kCoordNames.begin(), rover::kCoordNames.end()), {}}}, {}};
+  specs["joints.csv"] = {};  // the columns are the rover's (logStreamSpec with a geometry)
   specs["sun.csv"] = {{{{"s1", "s2", "valid"}, {}}},
                       {{"s1", -1.0, 1.0, false}, {"s2", -1.0, 1.0, false}, {"valid", 0, 1, true}}};
   specs["accel.csv"] = {{{{"ax", "ay", "az"}, {}}}, {}};
@@ -56,10 +64,10 @@ std::map<std::string, StreamSpec, std::less<>> makeLogSpecs() {
   specs["gps.csv"] = {
       {{{"x", "y", "z", "sx", "sy", "sz"}, {}}},
       {{"sx", 1e-9, kInf, false}, {"sy", 1e-9, kInf, false}, {"sz", 1e-9, kInf, false}}};
-  const Names xi = {"xi1", "xi2", "xi3", "xi4", "xi5", "xi6"};
-  specs["truth.csv"] = {{{{"x", "y", "z", "qw", "qx", "qy", "qz"},
-                          {xi, {"bx", "by", "bz"}, {"vx", "vy", "vz"}, {"wx", "wy", "wz"}}}},
-                        {}};
+  // Without a geometry the truth's contact angles may be for any number of wheels.
+  for (int n = 1; n <= rover::kMaxWheels; ++n) {
+    specs["truth.csv"].layouts.push_back(truthLayout(n));
+  }
   return specs;
 }
 
@@ -364,6 +372,13 @@ const StreamSpec& logStreamSpec(std::string_view file_name) {
   if (it == specs.end())
     throw std::out_of_range("not a log stream file: " + std::string(file_name));
   return it->second;
+}
+
+StreamSpec logStreamSpec(std::string_view file_name, const rover::RoverGeometry& geometry) {
+  StreamSpec spec = logStreamSpec(file_name);
+  if (file_name == "joints.csv") spec.layouts = {{geometry.columnNames(), {}}};
+  if (file_name == "truth.csv") spec.layouts = {truthLayout(geometry.numWheels())};
+  return spec;
 }
 
 Stream parseCsv(std::string_view text, const std::string& file, const StreamSpec& spec,

@@ -22,11 +22,12 @@ void requireFile(const fs::path& file) {
 }
 
 std::optional<Stream> readOptional(const fs::path& dir, const std::string& name,
+                                   const rover::RoverGeometry& geometry,
                                    const ReadOptions& options, ReadReport* report) {
   const fs::path file = dir / name;
   std::error_code ec;
   if (!fs::exists(file, ec)) return std::nullopt;
-  return readCsv(file, logStreamSpec(name), options, report);
+  return readCsv(file, logStreamSpec(name, geometry), options, report);
 }
 
 /// rover.yaml says which gyro axes exist; the file must carry exactly those.
@@ -79,12 +80,13 @@ TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport*
   log.geometry = loadRoverGeometry(urdf, log.config);
   log.gyro = readCsv(dir / "gyro.csv", logStreamSpec("gyro.csv"), options, report);
   checkGyroAxes(dir / "gyro.csv", log.gyro, log.config);
-  log.joints = readCsv(dir / "joints.csv", logStreamSpec("joints.csv"), options, report);
-  log.sun = readOptional(dir, "sun.csv", options, report);
-  log.accel = readOptional(dir, "accel.csv", options, report);
-  log.cmd = readOptional(dir, "cmd.csv", options, report);
-  log.truth = readOptional(dir, "truth.csv", options, report);
-  log.gps = readOptional(dir, "gps.csv", options, report);
+  log.joints =
+      readCsv(dir / "joints.csv", logStreamSpec("joints.csv", log.geometry), options, report);
+  log.sun = readOptional(dir, "sun.csv", log.geometry, options, report);
+  log.accel = readOptional(dir, "accel.csv", log.geometry, options, report);
+  log.cmd = readOptional(dir, "cmd.csv", log.geometry, options, report);
+  log.truth = readOptional(dir, "truth.csv", log.geometry, options, report);
+  log.gps = readOptional(dir, "gps.csv", log.geometry, options, report);
   return log;
 }
 

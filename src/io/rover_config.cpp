@@ -180,7 +180,11 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
     for (const auto& kv : j) {
       if (!kv.second.IsScalar())
         r.fail(kv.second, "joints." + kv.first.as<std::string>(), "expected a string");
-      c.joint_names[kv.first.as<std::string>()] = kv.second.as<std::string>();
+      const std::string column = kv.first.as<std::string>();
+      for (const auto& [seen, joint] : c.joint_names) {
+        if (seen == column) r.fail(kv.first, "joints." + column, "column listed twice");
+      }
+      c.joint_names.emplace_back(column, kv.second.as<std::string>());
     }
   }
   if (root["turn_centre_x_m"].IsDefined())

@@ -4,6 +4,7 @@
 #include <deque>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <sstream>
 
 #include <console_bridge/console.h>
@@ -15,9 +16,6 @@
 namespace traverse::io {
 namespace {
 
-using rover::kNumCoords;
-using rover::kNumWheels;
-
 Posed toPose(const urdf::Pose& p) {
   Posed g;
   g.p = Vec3d(p.position.x, p.position.y, p.position.z);
@@ -26,27 +24,45 @@ Posed toPose(const urdf::Pose& p) {
   return g;
 }
 
-/// Radius of a wheel link: its collision cylinder, else its visual cylinder.
+/// Radius of a wheel link: its collision cylinder, else its visual cylinder (0: none).
 double wheelRadius(const urdf::LinkConstSharedPtr& link) {
   auto cyl = [](const urdf::GeometrySharedPtr& g) -> double {
     if (g && g->type == urdf::Geometry::CYLINDER)
       return std::static_pointer_cast<urdf::Cylinder>(g)->radius;
     return 0.0;
   };
-  if (link->collision && cyl(link->collision->geometry) > 0) return cyl(link->collision->geometry);
-  if (link->visual && cyl(link->visual->geometry) > 0) return cyl(link->visual->geometry);
+  if (link->collision && cyl(link->collision->geometry) != 0)
+    return cyl(link->collision->geometry);
+  if (link->visual && cyl(link->visual->geometry) != 0) return cyl(link->visual->geometry);
   return 0.0;
 }
 
-/// Coordinate index for each URDF joint name (via the yaml column map).
-std::map<std::string, int> coordinateMap(const RoverConfig& config) {
-  std::map<std::string, int> by_joint;
-  for (int c = 0; c < kNumCoords; ++c) {
-    const std::string column(rover::kCoordNames[c]);
-    const auto it = config.joint_names.find(column);
-    by_joint[it == config.joint_names.end() ? column : it->second] = c;
+bool hasCylinder(const urdf::LinkConstSharedPtr& link) {
+  auto is_cyl = [](const auto& part) {
+    return part && part->geometry && part->geometry->type == urdf::Geometry::CYLINDER;
+  };
+  return is_cyl(link->collision) || is_cyl(link->visual);
+}
+
+/// Joint names in the order the URDF text declares them (urdfdom keeps its joints in a map
+/// sorted by name): the `name` attribute of every <joint> element outside comments.
+std::vector<std::string> jointsInDocumentOrder(const std::string& xml) {
+  std::string text = xml;
+  for (size_t a = text.find("<!--"); a != std::string::npos; a = text.find("<!--", a)) {
+    const size_t b = text.find("-->", a);
+    text.erase(a, b == std::string::npos ? std::string::npos : b + 3 - a);
   }
-  return by_joint;
+  static const std::regex kJoint(R"(<joint\b[^>]*?\bname\s*=\s*["']([^"']*)["'])");
+  std::vector<std::string> out;
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), kJoint);
+       it != std::sregex_iterator(); ++it) {
+    out.push_back((*it)[1].str());
+  }
+  return out;
+}
+
+bool movable(const urdf::JointConstSharedPtr& j) {
+  return j->type == urdf::Joint::REVOLUTE || j->type == urdf::Joint::CONTINUOUS;
 }
 
 }  // namespace
@@ -57,16 +73,52 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
   console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
   const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
   if (!model) throw InputError(source, 0, "unreadable URDF (urdfdom could not parse it)");
-  const auto coords = coordinateMap(config);
-  for (const auto& [joint, c] : coords) {
-    if (!model->getJoint(joint)) {
-      throw InputError(source, 0,
-                       "joint '" + joint + "' (joints.csv column '" +
-                           std::string(rover::kCoordNames[c]) + "') is not in the URDF");
+  const auto fail = [&](const std::string& what) { throw InputError(source, 0, what); };
+  for (const auto& [name, j] : model->joints_) {
+    if (j->type != urdf::Joint::FIXED && !movable(j)) {
+      fail("joint '" + name + "': only revolute, continuous and fixed joints are supported");
     }
   }
   rover::RoverGeometry geo;
   geo.name = model->getName();
+
+  // The joint coordinates (joints.csv columns): every movable joint that does not mimic another.
+  std::map<std::string, int> coord_of;  // URDF joint name → coordinate index
+  auto add = [&](const std::string& column, const std::string& joint) {
+    coord_of[joint] = geo.numCoords();
+    geo.coords.push_back({column, joint, rover::CoordKind::kSuspension, -1});
+  };
+  if (!config.joint_names.empty()) {  // rover.yaml `joints`: column → joint, in column order
+    for (const auto& [column, joint] : config.joint_names) {
+      const urdf::JointConstSharedPtr j = model->getJoint(joint);
+      if (!j) fail("joint '" + joint + "' (joints.csv column '" + column + "') is not in the URDF");
+      if (!movable(j)) {
+        fail("joint '" + joint + "' (joints.csv column '" + column +
+             "') is fixed: only movable joints have a column");
+      }
+      if (j->mimic) {
+        fail("joint '" + joint + "' (joints.csv column '" + column + "') mimics '" +
+             j->mimic->joint_name + "' and so has no column of its own");
+      }
+      if (coord_of.count(joint)) fail("joint '" + joint + "' is mapped to two joints.csv columns");
+      add(column, joint);
+    }
+  } else {
+    for (const std::string& name : jointsInDocumentOrder(xml)) {
+      const urdf::JointConstSharedPtr j = model->getJoint(name);
+      if (j && movable(j) && !j->mimic && !coord_of.count(name)) add(name, name);
+    }
+  }
+  for (const auto& [name, j] : model->joints_) {
+    if (movable(j) && !j->mimic && !coord_of.count(name)) {
+      fail("joint '" + name + "' is not mapped to a joints.csv column (rover.yaml 'joints')");
+    }
+  }
+  if (geo.numCoords() > rover::kMaxCoords) {
+    fail("the URDF has " + std::to_string(geo.numCoords()) + " movable joints (at most " +
+         std::to_string(rover::kMaxCoords) + " are supported)");
+  }
+
   std::map<std::string, int> joint_index;  // URDF joint name → index in geo.joints
   std::map<std::string, int> link_parent;  // link name → index of the joint that carries it
   std::deque<urdf::LinkConstSharedPtr> queue{model->getRoot()};
@@ -82,30 +134,21 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       kj.axis = Vec3d(j->axis.x, j->axis.y, j->axis.z);
       if (j->type == urdf::Joint::FIXED) {
         kj.axis.setZero();
-      } else if (j->type != urdf::Joint::REVOLUTE && j->type != urdf::Joint::CONTINUOUS) {
-        throw InputError(
-            source, 0,
-            "joint '" + j->name + "': only revolute, continuous and fixed joints are supported");
       } else if (kj.axis.norm() < 1e-9) {
-        throw InputError(source, 0, "joint '" + j->name + "': zero axis");
+        fail("joint '" + j->name + "': zero axis");
       } else {
         kj.axis.normalize();
-        if (const auto it = coords.find(j->name); it != coords.end()) {
+        if (const auto it = coord_of.find(j->name); it != coord_of.end()) {
           kj.coord = it->second;
-        } else if (j->mimic) {
-          const auto m = coords.find(j->mimic->joint_name);
-          if (m == coords.end()) {
-            throw InputError(source, 0,
-                             "joint '" + j->name + "' mimics '" + j->mimic->joint_name +
-                                 "', which is not mapped to a joints.csv column");
+        } else {  // a mimic joint (every other movable joint is a coordinate)
+          const auto m = coord_of.find(j->mimic->joint_name);
+          if (m == coord_of.end()) {
+            fail("joint '" + j->name + "' mimics '" + j->mimic->joint_name +
+                 "', which is not mapped to a joints.csv column");
           }
           kj.coord = m->second;
           kj.multiplier = j->mimic->multiplier;
           kj.offset = j->mimic->offset;
-        } else {
-          throw InputError(
-              source, 0,
-              "joint '" + j->name + "' is not mapped to a joints.csv column (rover.yaml 'joints')");
         }
       }
       joint_index[j->name] = static_cast<int>(geo.joints.size());
@@ -115,35 +158,58 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       queue.push_back(child);
     }
   }
-  for (const auto& [name, c] : coords) {
-    if (c < rover::kPsi1) continue;
-    const int w = c - rover::kPsi1;
-    const int d = joint_index.at(name);
-    if (geo.joints[d].coord != c || (geo.joints[d].axis - Vec3d::UnitY()).norm() > 1e-9) {
-      throw InputError(
-          source, 0,
-          "wheel drive joint '" + name + "' must rotate about +y of its frame (axis 0 1 0)");
+
+  // Wheels: continuous joints, and leaf revolute joints whose link is a cylinder. Steering: the
+  // other coordinates whose axis is near the body's vertical at zero angles. Suspension: the rest.
+  const std::vector<Posed> at_zero = rover::jointPoses<double>(geo, geo.zeroJoints());
+  for (rover::Coordinate& c : geo.coords) {
+    const urdf::JointConstSharedPtr j = model->getJoint(c.joint);
+    const urdf::LinkConstSharedPtr link = model->getLink(j->child_link_name);
+    const bool wheel = j->type == urdf::Joint::CONTINUOUS ||
+                       (link->child_joints.empty() && hasCylinder(link));
+    const int d = joint_index.at(c.joint);
+    if (wheel) {
+      if ((geo.joints[d].axis - Vec3d::UnitY()).norm() > 1e-9) {
+        fail("wheel drive joint '" + c.joint + "' must rotate about +y of its frame (axis 0 1 0)");
+      }
+      rover::Wheel w;
+      w.drive_joint = d;
+      w.coord = static_cast<int>(&c - geo.coords.data());
+      w.radius = wheelRadius(link);
+      if (!(w.radius > 0.0)) {
+        fail("wheel link of joint '" + c.joint +
+             "' has no cylinder geometry giving a positive radius");
+      }
+      c.kind = rover::CoordKind::kDrive;
+      c.wheel = geo.numWheels();
+      geo.wheels.push_back(w);
+    } else {
+      const Vec3d axis_body = at_zero[static_cast<size_t>(d)].R * geo.joints[d].axis;
+      c.kind = std::abs(axis_body.z()) > std::cos(30.0 * M_PI / 180.0) ? rover::CoordKind::kSteering
+                                                                      : rover::CoordKind::kSuspension;
     }
-    geo.wheels[w].drive_joint = d;
-    geo.wheels[w].radius = wheelRadius(model->getLink(model->getJoint(name)->child_link_name));
-    if (!(geo.wheels[w].radius > 0.0)) {
-      throw InputError(
-          source, 0,
-          "wheel link of joint '" + name + "' has no cylinder geometry giving a positive radius");
+  }
+  if (geo.wheels.empty()) {
+    fail("the URDF has no wheel (a continuous joint, or a revolute joint ending in a cylinder link)");
+  }
+  if (geo.numWheels() > rover::kMaxWheels) {
+    fail("the URDF has " + std::to_string(geo.numWheels()) + " wheels (at most " +
+         std::to_string(rover::kMaxWheels) + " are supported)");
+  }
+  for (rover::Wheel& w : geo.wheels) {
+    for (int j = w.drive_joint; j >= 0; j = geo.joints[j].parent) {
+      const int c = geo.joints[j].coord;
+      w.steered |= c >= 0 && geo.coords[static_cast<size_t>(c)].kind == rover::CoordKind::kSteering;
     }
   }
   if (config.turn_centre_x_m) {
     geo.turn_centre_x = *config.turn_centre_x_m;
   } else {  // mean x of the wheels without a steering joint on their chain
-    const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero());
+    const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
     double sum = 0.0;
     int n = 0;
-    for (int w = 0; w < kNumWheels; ++w) {
-      bool steered = false;
-      for (int j = geo.wheels[w].drive_joint; j >= 0; j = geo.joints[j].parent) {
-        steered |= geo.joints[j].coord == rover::kLambda1 || geo.joints[j].coord == rover::kLambda2;
-      }
-      if (!steered) sum += kin[w].T_body_wheel.p.x(), ++n;
+    for (int w = 0; w < geo.numWheels(); ++w) {
+      if (!geo.wheels[w].steered) sum += kin[w].T_body_wheel.p.x(), ++n;
     }
     geo.turn_centre_x = n > 0 ? sum / n : 0.0;
   }

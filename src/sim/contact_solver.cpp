@@ -7,14 +7,17 @@
 
 namespace traverse::sim {
 
-using rover::kNumWheels;
-
 ContactSolver::ContactSolver(const rover::RoverGeometry& geometry, const Terrain& terrain,
                              ContactSolverOptions options)
-    : geometry_(geometry), terrain_(terrain), options_(options) {
-  const auto kin = rover::forwardKinematics<double>(geometry_, rover::JointVectord::Zero());
-  for (int i = 0; i < kNumWheels; ++i) {
-    centre_height_ += (-kin[i].T_body_wheel.p.z() + geometry_.wheels[i].radius) / kNumWheels;
+    : geometry_(geometry),
+      suspension_(geometry.coordsOfKind(rover::CoordKind::kSuspension)),
+      steering_(geometry.coordsOfKind(rover::CoordKind::kSteering)),
+      terrain_(terrain),
+      options_(options) {
+  const auto kin = rover::forwardKinematics<double>(geometry_, geometry_.zeroJoints());
+  const int nw = geometry_.numWheels();
+  for (int i = 0; i < nw; ++i) {
+    centre_height_ += (-kin[i].T_body_wheel.p.z() + geometry_.wheels[i].radius) / nw;
   }
 }
 
@@ -22,18 +25,19 @@ Posed ContactSolver::bodyPose(double x, double y, double yaw, const ContactState
   return Posed{so3::fromRollPitchYaw(s.roll, s.pitch, yaw).toRotationMatrix(), Vec3d(x, y, s.z)};
 }
 
-rover::JointVectord ContactSolver::joints(const Vec3d& gamma, const Vec2d& steering) const {
-  rover::JointVectord q = rover::JointVectord::Zero();
-  q.head<3>() = gamma;
-  q.segment<2>(rover::kLambda1) = steering;
+rover::JointVectord ContactSolver::joints(const rover::JointVectord& suspension,
+                                          const rover::JointVectord& steering) const {
+  rover::JointVectord q = geometry_.zeroJoints();
+  for (size_t c = 0; c < suspension_.size(); ++c) q[suspension_[c]] = suspension[static_cast<Eigen::Index>(c)];
+  for (size_t c = 0; c < steering_.size(); ++c) q[steering_[c]] = steering[static_cast<Eigen::Index>(c)];
   return q;
 }
 
-std::array<ContactSolver::Rim, kNumWheels> ContactSolver::rims(const Posed& T_site_body,
-                                                               const rover::JointVectord& q) const {
+std::vector<ContactSolver::Rim> ContactSolver::rims(const Posed& T_site_body,
+                                                    const rover::JointVectord& q) const {
   const auto kin = rover::forwardKinematics<double>(geometry_, q);
-  std::array<Rim, kNumWheels> out;
-  for (int i = 0; i < kNumWheels; ++i) {
+  std::vector<Rim> out(kin.size());
+  for (size_t i = 0; i < kin.size(); ++i) {
     const Posed w = T_site_body * kin[i].T_body_wheel;
     out[i] = {w.p, w.R.col(0), w.R.col(2), geometry_.wheels[i].radius};
   }
@@ -93,58 +97,71 @@ ContactState ContactSolver::initialGuess(double x, double y, double yaw) const {
   s.pitch = std::atan2(nb.x(), nb.z());
   s.roll = std::atan2(-nb.y(), std::hypot(nb.x(), nb.z()));
   s.z = terrain_.height(x, y) + centre_height_;
+  s.suspension = rover::JointVectord::Zero(static_cast<Eigen::Index>(suspension_.size()));
+  s.xi = rover::WheelVectord::Zero(geometry_.numWheels());
   return s;
 }
 
-ContactState ContactSolver::solve(double x, double y, double yaw, const Vec2d& steering,
+ContactState ContactSolver::solve(double x, double y, double yaw,
+                                  const rover::JointVectord& steering,
                                   const ContactState& guess) const {
-  using Vec6 = Eigen::Matrix<double, 6, 1>;
-  auto unpack = [](const Vec6& u, ContactState s) {
-    s.z = u[0], s.roll = u[1], s.pitch = u[2], s.gamma = u.tail<3>();
+  const int nw = geometry_.numWheels();
+  const auto ns = static_cast<Eigen::Index>(suspension_.size());
+  const Eigen::Index nu = 3 + ns;  // unknowns: z, roll, pitch, suspension angles
+  auto unpack = [&](const Eigen::VectorXd& u, ContactState s) {
+    s.z = u[0], s.roll = u[1], s.pitch = u[2], s.suspension = u.tail(ns);
     return s;
   };
-  auto gaps = [&](const Vec6& u, const std::array<double, kNumWheels>& xi) {
+  auto gaps = [&](const Eigen::VectorXd& u, const rover::WheelVectord& xi) {
     const ContactState s = unpack(u, {});
-    const auto r = rims(bodyPose(x, y, yaw, s), joints(s.gamma, steering));
-    Vec6 g;
-    for (int i = 0; i < kNumWheels; ++i) g[i] = gap(r[i], xi[i]);
+    const auto r = rims(bodyPose(x, y, yaw, s), joints(s.suspension, steering));
+    Eigen::VectorXd g(nw);
+    for (int i = 0; i < nw; ++i) g[i] = gap(r[i], xi[i]);
     return g;
   };
   ContactState state = guess;
-  Vec6 u;
-  u << guess.z, guess.roll, guess.pitch, guess.gamma;
+  if (state.xi.size() != nw) state.xi = rover::WheelVectord::Zero(nw);
+  Eigen::VectorXd u(nu);
+  u << guess.z, guess.roll, guess.pitch,
+      guess.suspension.size() == ns ? Eigen::VectorXd(guess.suspension) : Eigen::VectorXd::Zero(ns);
+  const bool square = nu == nw;
   for (int it = 0; it < options_.max_iterations; ++it) {
     // Contact angles for the current configuration, then the gaps there.
-    const auto r = rims(bodyPose(x, y, yaw, unpack(u, state)), joints(u.tail<3>(), steering));
-    for (int i = 0; i < kNumWheels; ++i) state.xi[i] = lowestRimPoint(r[i], state.xi[i]);
-    const Vec6 F = gaps(u, state.xi);
+    const auto r = rims(bodyPose(x, y, yaw, unpack(u, state)), joints(u.tail(ns), steering));
+    for (int i = 0; i < nw; ++i) state.xi[i] = lowestRimPoint(r[i], state.xi[i]);
+    const Eigen::VectorXd F = gaps(u, state.xi);
     if (F.cwiseAbs().maxCoeff() < options_.tolerance_m) return unpack(u, state);
     // At the rim minimum ∂gap/∂ξ = 0, so the Jacobian can hold ξ fixed (envelope theorem).
-    Eigen::Matrix<double, 6, 6> J;
-    for (int j = 0; j < 6; ++j) {
+    Eigen::MatrixXd J(nw, nu);
+    for (Eigen::Index j = 0; j < nu; ++j) {
       const double h = 1e-7;
-      Vec6 up = u, um = u;
+      Eigen::VectorXd up = u, um = u;
       up[j] += h, um[j] -= h;
       J.col(j) = (gaps(up, state.xi) - gaps(um, state.xi)) / (2 * h);
     }
-    Vec6 step = J.fullPivLu().solve(-F);
+    const Eigen::VectorXd step =
+        square ? Eigen::VectorXd(J.fullPivLu().solve(-F))
+               : Eigen::VectorXd(J.colPivHouseholderQr().solve(-F));  // least squares
     double alpha = 1.0;  // backtrack if the gaps do not shrink
     while (alpha > 1e-3 && gaps(u + alpha * step, state.xi).norm() > F.norm()) alpha *= 0.5;
     u += alpha * step;
-    if (!u.allFinite() || u.tail<3>().cwiseAbs().maxCoeff() > options_.max_joint_angle_rad) break;
+    if (!u.allFinite() || (ns > 0 && u.tail(ns).cwiseAbs().maxCoeff() > options_.max_joint_angle_rad))
+      break;
+    // More wheels than unknowns: the least-squares optimum, once Gauss–Newton stops moving.
+    if (!square && step.norm() < 1e-12) return unpack(u, state);
   }
   std::ostringstream os;
   os << "contact solver: no contact configuration at x = " << x << " m, y = " << y
-     << " m, yaw = " << yaw << " rad (suspension angles " << u.tail<3>().transpose() << ")";
+     << " m, yaw = " << yaw << " rad (suspension angles " << u.tail(ns).transpose() << ")";
   throw ContactError(os.str());
 }
 
-std::array<WheelContactCheck, kNumWheels> ContactSolver::check(double x, double y, double yaw,
-                                                               const Vec2d& steering,
-                                                               const ContactState& s) const {
-  const auto r = rims(bodyPose(x, y, yaw, s), joints(s.gamma, steering));
-  std::array<WheelContactCheck, kNumWheels> out;
-  for (int i = 0; i < kNumWheels; ++i) {
+std::vector<WheelContactCheck> ContactSolver::check(double x, double y, double yaw,
+                                                    const rover::JointVectord& steering,
+                                                    const ContactState& s) const {
+  const auto r = rims(bodyPose(x, y, yaw, s), joints(s.suspension, steering));
+  std::vector<WheelContactCheck> out(r.size());
+  for (size_t i = 0; i < r.size(); ++i) {
     const Rim& rim = r[i];
     const double xi = s.xi[i];
     const Vec3d p =

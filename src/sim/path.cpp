@@ -16,14 +16,31 @@ double smoothstepIntegral(double u) {
   return u <= 0 ? 0 : u >= 1 ? u - 0.5 : u * u * u * u * (2.5 - 3 * u + u * u);
 }
 
-/// Steering of the front wheels (at zero suspension angles) that puts the instantaneous centre
-/// of rotation at (x_c, R) in the body; a turn in place is R = 0.
-Vec2d steeringFor(const rover::RoverGeometry& geo, const Leg& leg) {
-  if (leg.kind != Leg::Kind::kArc && leg.kind != Leg::Kind::kTurnInPlace) return Vec2d::Zero();
-  const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero());
-  Vec2d s;
-  for (int k = 0; k < 2; ++k) {
-    const Vec3d p = kin[k == 0 ? 0 : 3].T_body_wheel.p;  // wheels 1 and 4 are the steered ones
+/// The first wheel each steering coordinate turns (its joint on the wheel's chain).
+std::vector<int> steeredWheels(const rover::RoverGeometry& geo) {
+  std::vector<int> out;
+  for (const int c : geo.coordsOfKind(rover::CoordKind::kSteering)) {
+    int wheel = -1;
+    for (int w = 0; w < geo.numWheels() && wheel < 0; ++w) {
+      for (int j = geo.wheels[w].drive_joint; j >= 0; j = geo.joints[j].parent)
+        if (geo.joints[j].coord == c) wheel = w;
+    }
+    out.push_back(wheel);
+  }
+  return out;
+}
+
+/// Steering of the steered wheels (at zero suspension angles) that puts the instantaneous
+/// centre of rotation at (x_c, R) in the body; a turn in place is R = 0.
+rover::JointVectord steeringFor(const rover::RoverGeometry& geo, const Leg& leg) {
+  const std::vector<int> wheels = steeredWheels(geo);
+  rover::JointVectord s = rover::JointVectord::Zero(static_cast<Eigen::Index>(wheels.size()));
+  if (leg.kind != Leg::Kind::kArc && leg.kind != Leg::Kind::kTurnInPlace) return s;
+  const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
+  for (Eigen::Index k = 0; k < s.size(); ++k) {
+    const int w = wheels[static_cast<size_t>(k)];
+    if (w < 0) continue;  // a steering joint above no wheel
+    const Vec3d p = kin[static_cast<size_t>(w)].T_body_wheel.p;
     const double dx = p.x() - geo.turn_centre_x;
     s[k] = leg.kind == Leg::Kind::kTurnInPlace ? -std::atan(dx / p.y())
                                                : std::atan(dx / (leg.radius_m - p.y()));
@@ -70,7 +87,8 @@ std::vector<PathSample> samplePath(const Scenario& sc, const rover::RoverGeometr
   std::vector<PathSample> out;
   Vec2d centre = sc.start.head<2>();
   double yaw = sc.start.z(), t0 = 0.0;
-  Vec2d steering = Vec2d::Zero();
+  rover::JointVectord steering = rover::JointVectord::Zero(
+      static_cast<Eigen::Index>(geo.coordsOfKind(rover::CoordKind::kSteering).size()));
   auto emit_until = [&](double duration, auto&& at) {  // samples in [t0, t0 + duration)
     const long first = std::lround(std::ceil(t0 / dt - 1e-9));
     for (long k = first; k * dt < t0 + duration - 1e-9; ++k) out.push_back(at(k * dt - t0, k * dt));
@@ -83,12 +101,18 @@ std::vector<PathSample> samplePath(const Scenario& sc, const rover::RoverGeometr
       });
       continue;
     }
-    const Vec2d target = steeringFor(geo, leg);
-    if ((target - steering).cwiseAbs().maxCoeff() > 1e-12) {
-      const Vec2d from = steering;
+    const rover::JointVectord target = steeringFor(geo, leg);
+    if (target.size() > 0 && (target - steering).cwiseAbs().maxCoeff() > 1e-12) {
+      const rover::JointVectord from = steering;
       emit_until(leg.steer_s, [&](double tau, double t) {
-        return PathSample{t, centre, yaw, from + (target - from) * smoothstep(tau / leg.steer_s),
-                          0, 0,      0,   false};
+        return PathSample{t,
+                          centre,
+                          yaw,
+                          from + (target - from) * smoothstep(tau / leg.steer_s),
+                          0,
+                          0,
+                          0,
+                          false};
       });
       steering = target;
     }

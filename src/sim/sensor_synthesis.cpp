@@ -12,7 +12,6 @@
 namespace traverse::sim {
 namespace {
 
-using rover::kNumWheels;
 
 double quantize(double x, double q) {
   return q > 0 ? q * std::round(x / q) : x;
@@ -112,7 +111,7 @@ TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t) {
   s.w_dot_body = (1 - u) * a.w_dot_body + u * b.w_dot_body;
   s.joints = (1 - u) * a.joints + u * b.joints;
   s.joint_rates = (1 - u) * a.joint_rates + u * b.joint_rates;
-  for (int i = 0; i < kNumWheels; ++i) s.xi[i] = (1 - u) * a.xi[i] + u * b.xi[i];
+  s.xi = (1 - u) * a.xi + u * b.xi;
   s.gyro_bias = (1 - u) * a.gyro_bias + u * b.gyro_bias;
   s.cmd = (1 - u) * a.cmd + u * b.cmd;
   return s;
@@ -143,14 +142,14 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
     }
   });
 
-  std::vector<std::string> joint_cols;
-  for (auto n : rover::kCoordNames) joint_cols.emplace_back(n);
+  const std::vector<std::string> joint_cols = geo.columnNames();
   log.joints = sampled(truth, s.joints_rate_hz, joint_cols, [&](const TruthSample& x, auto row) {
-    for (int c = 0; c < rover::kNumCoords; ++c) {
-      const bool wheel = c >= rover::kPsi1;
-      const double noise = wheel                  ? s.wheel_angle_noise_rad
-                           : c >= rover::kLambda1 ? s.steering_noise_rad
-                                                  : s.joint_angle_noise_rad;
+    for (int c = 0; c < geo.numCoords(); ++c) {
+      const rover::CoordKind kind = geo.coords[static_cast<size_t>(c)].kind;
+      const bool wheel = kind == rover::CoordKind::kDrive;
+      const double noise = wheel                                   ? s.wheel_angle_noise_rad
+                           : kind == rover::CoordKind::kSteering ? s.steering_noise_rad
+                                                                   : s.joint_angle_noise_rad;
       row[c] = quantize(x.joints[c] + noise * joint_rng.normal(),
                         wheel ? s.wheel_quantum_rad : s.joint_quantum_rad);
     }
@@ -196,16 +195,17 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
                       });
   }
   std::vector<std::string> truth_cols = {"x", "y", "z", "qw", "qx", "qy", "qz"};
-  for (int i = 1; i <= kNumWheels; ++i) truth_cols.push_back("xi" + std::to_string(i));
+  const int nw = geo.numWheels();
+  for (int i = 1; i <= nw; ++i) truth_cols.push_back("xi" + std::to_string(i));
   for (const char* c : {"bx", "by", "bz", "vx", "vy", "vz", "wx", "wy", "wz"})
     truth_cols.emplace_back(c);
   log.truth = sampled(truth, sc.truth_output_hz, truth_cols, [&](const TruthSample& x, auto row) {
     const Quatd& q = x.q_site_body;
     row.head(7) << x.p_site.x(), x.p_site.y(), x.p_site.z(), q.w(), q.x(), q.y(), q.z();
-    for (int i = 0; i < kNumWheels; ++i) row[7 + i] = x.xi[i];
-    row.segment(13, 3) = x.gyro_bias.transpose();
-    row.segment(16, 3) = x.v_body.transpose();
-    row.segment(19, 3) = x.w_body.transpose();
+    for (int i = 0; i < nw; ++i) row[7 + i] = x.xi[i];
+    row.segment(7 + nw, 3) = x.gyro_bias.transpose();
+    row.segment(10 + nw, 3) = x.v_body.transpose();
+    row.segment(13 + nw, 3) = x.w_body.transpose();
   });
   return log;
 }

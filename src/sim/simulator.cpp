@@ -15,7 +15,6 @@
 namespace traverse::sim {
 namespace {
 
-using rover::kNumWheels;
 
 std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario& sc,
                                            uint64_t seed) {
@@ -50,16 +49,20 @@ std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario&
 /// how fast the rover is moving relative to its cruise rate (no slip at rest).
 class SlipProcess {
  public:
-  SlipProcess(const SlipSpec& s, double dt, uint64_t seed)
-      : s_(s), dt_(dt), rng_(seed, 101), burst_rng_(seed, 102) {}
-  std::array<double, kNumWheels> step(double progress, double distance_step) {
+  SlipProcess(const SlipSpec& s, int wheels, double dt, uint64_t seed)
+      : s_(s),
+        dt_(dt),
+        rng_(seed, 101),
+        burst_rng_(seed, 102),
+        gm_(rover::WheelVectord::Zero(wheels)) {}
+  rover::WheelVectord step(double progress, double distance_step) {
     const double a = std::exp(-dt_ / s_.correlation_time_s);
-    std::array<double, kNumWheels> out{};
+    rover::WheelVectord out = rover::WheelVectord::Zero(gm_.size());
     if (s_.burst_rate_per_m > 0 && burst_rng_.uniform() < s_.burst_rate_per_m * distance_step)
       burst_left_ = s_.burst_duration_s;
     const double burst = burst_left_ > 0 ? s_.burst_mps : 0.0;
     burst_left_ -= dt_;
-    for (int i = 0; i < kNumWheels; ++i) {
+    for (Eigen::Index i = 0; i < gm_.size(); ++i) {
       gm_[i] = a * gm_[i] + std::sqrt(1 - a * a) * s_.longitudinal_correlated_mps * rng_.normal();
       out[i] = progress * (s_.longitudinal_white_mps * rng_.normal() + gm_[i] + burst);
     }
@@ -72,7 +75,7 @@ class SlipProcess {
   SlipSpec s_;
   double dt_;
   Rng rng_, burst_rng_;
-  std::array<double, kNumWheels> gm_{};
+  rover::WheelVectord gm_;
   double lateral_ = 0.0, burst_left_ = 0.0;
 };
 
@@ -93,8 +96,7 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
     s.t = p.t;
     s.moving = p.moving;
     const double step = std::abs(p.speed_mps) * dt;
-    const auto long_slip = slip.step(p.progress, step);
-    std::copy(long_slip.begin(), long_slip.end(), s.slip_longitudinal_mps.begin());
+    s.slip_longitudinal_mps = slip.step(p.progress, step);
     lateral_offset += slip.lateral(p.progress) * dt * Vec2d(-std::sin(p.yaw), std::cos(p.yaw));
     // The path is that of the ground point below the turn centre, (x_c, 0, −h) in the body, h the
     // body origin's height above the ground at zero joint angles: a rover rolling or pitching
@@ -119,16 +121,22 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
     const Posed pose = ContactSolver::bodyPose(body_xy.x(), body_xy.y(), p.yaw, state);
     s.p_site = pose.p;
     s.q_site_body = Quatd(pose.R).normalized();
-    s.joints.head<3>() = state.gamma;
-    s.joints.segment<2>(rover::kLambda1) = p.steering;
-    std::copy(state.xi.begin(), state.xi.end(), s.xi.begin());
+    s.joints = geo.zeroJoints();
+    const std::vector<int> suspension = geo.coordsOfKind(rover::CoordKind::kSuspension);
+    const std::vector<int> steering = geo.coordsOfKind(rover::CoordKind::kSteering);
+    for (size_t c = 0; c < suspension.size(); ++c)
+      s.joints[suspension[c]] = state.suspension[static_cast<Eigen::Index>(c)];
+    for (size_t c = 0; c < steering.size(); ++c)
+      s.joints[steering[c]] = p.steering[static_cast<Eigen::Index>(c)];
+    s.joint_rates = geo.zeroJoints();
+    s.xi = state.xi;
     s.cmd = rover::nominalBodyTwist(geo, p.speed_mps, p.yaw_rate_rad_s);
   }
   return truth;
 }
 
 /// v, ω, γ̇, λ̇ by central differences; then v̇, ω̇; one-sided at the ends.
-void differentiate(std::vector<TruthSample>& truth) {
+void differentiate(std::vector<TruthSample>& truth, const rover::RoverGeometry& geo) {
   const size_t n = truth.size();
   auto span = [&](size_t k) {
     return std::pair<size_t, size_t>{k == 0 ? 0 : k - 1, k + 1 >= n ? n - 1 : k + 1};
@@ -142,7 +150,12 @@ void differentiate(std::vector<TruthSample>& truth) {
     s.w_body = so3::boxminus(truth[b].q_site_body, truth[a].q_site_body) / h;
     // ω from the chord is expressed in frame a; rotate to the frame at k (second-order accurate).
     s.w_body = s.q_site_body.conjugate() * (truth[a].q_site_body * s.w_body);
-    s.joint_rates.head<5>() = (truth[b].joints.head<5>() - truth[a].joints.head<5>()) / h;
+    // Suspension and steering rates (the drive rates follow from rolling, driveWheels).
+    for (const rover::Coordinate& c : geo.coords) {
+      if (c.kind == rover::CoordKind::kDrive) continue;
+      const auto j = &c - geo.coords.data();
+      s.joint_rates[j] = (truth[b].joints[j] - truth[a].joints[j]) / h;
+    }
   }
   for (size_t k = 0; k < n; ++k) {
     const auto [a, b] = span(k);
@@ -160,20 +173,20 @@ void driveWheels(std::vector<TruthSample>& truth, const rover::RoverGeometry& ge
     TruthSample& s = truth[k];
     const auto kin = rover::forwardKinematics<double>(geo, s.joints);
     rover::JointVectord rates = s.joint_rates;
-    rates.tail<kNumWheels>().setZero();
-    for (int i = 0; i < kNumWheels; ++i) {
+    for (const rover::Wheel& w : geo.wheels) rates[w.coord] = 0.0;
+    for (int i = 0; i < geo.numWheels(); ++i) {
       const double r = geo.wheels[i].radius;
       const Vec4d t0 = rover::slipConstraint<double>(kin[i].T_body_wheel, r,
                                                      rover::wheelJointTwist(kin[i], rates),
                                                      s.v_body, s.w_body, s.xi[i]);
-      s.joint_rates[rover::kPsi1 + i] = (t0[0] - s.slip_longitudinal_mps[i]) / r;
+      s.joint_rates[geo.wheels[i].coord] = (t0[0] - s.slip_longitudinal_mps[i]) / r;
     }
     if (k > 0) {  // trapezoidal integration of the drive angles
       const double h = s.t - truth[k - 1].t;
-      s.joints.tail<kNumWheels>() =
-          truth[k - 1].joints.tail<kNumWheels>() +
-          0.5 * h *
-              (s.joint_rates.tail<kNumWheels>() + truth[k - 1].joint_rates.tail<kNumWheels>());
+      for (const rover::Wheel& w : geo.wheels) {
+        s.joints[w.coord] = truth[k - 1].joints[w.coord] +
+                            0.5 * h * (s.joint_rates[w.coord] + truth[k - 1].joint_rates[w.coord]);
+      }
     }
   }
 }
@@ -198,10 +211,10 @@ Simulation simulate(const Scenario& sc, const std::filesystem::path& rover_dir, 
   const rover::RoverGeometry geo = io::loadRoverGeometry(rover_dir / config.urdf_file, config);
   const auto terrain = makeTerrain(sc.terrain, sc, seed);
   const std::vector<PathSample> path = samplePath(sc, geo);
-  SlipProcess slip(sc.slip, 1.0 / sc.truth_rate_hz, seed);
+  SlipProcess slip(sc.slip, geo.numWheels(), 1.0 / sc.truth_rate_hz, seed);
   Simulation sim;
   sim.truth = solvePoses(sc, geo, *terrain, path, slip);
-  differentiate(sim.truth);
+  differentiate(sim.truth, geo);
   driveWheels(sim.truth, geo);
   gyroBias(sim.truth, sc.sensors, seed);
   sim.log = synthesizeLog(sc, config, geo, rover_dir, sim.truth, seed);

@@ -97,7 +97,7 @@ namespace {
 
 /// Parameter blocks of one node. Quaternion storage: x, y, z, w.
 struct NodeBlocks {
-  double q[4], x[3], v[3], w[3], xi[6], b[3];
+  double q[4], x[3], v[3], w[3], xi[rover::kMaxWheels], b[3];  // ξ: the first numWheels()
 };
 
 double seconds(std::chrono::steady_clock::time_point t0) {
@@ -108,7 +108,13 @@ double seconds(std::chrono::steady_clock::time_point t0) {
 class SegmentBuilder {
  public:
   SegmentBuilder(const SmootherData& d, const SegmentSpec& spec, const SmootherOptions& o)
-      : d_(d), spec_(spec), o_(o), cfg_(d.log.config), n_(spec.last - spec.first + 1) {
+      : d_(d),
+        spec_(spec),
+        o_(o),
+        cfg_(d.log.config),
+        n_(spec.last - spec.first + 1),
+        nw_(d.log.geometry.numWheels()),
+        contact_memo_(static_cast<size_t>(nw_)) {
     ceres::Problem::Options po;
     // The builder owns every cost function (residuals_), loss and manifold: a Problem that owns
     // them keeps a hash map of reference counts, one insertion per residual block and a walk
@@ -166,6 +172,7 @@ class SegmentBuilder {
   const SmootherOptions& o_;
   const io::RoverConfig& cfg_;
   size_t n_;
+  int nw_;  ///< wheels
   std::vector<NodeBlocks> nodes_;
   double segment_bias_[3] = {0, 0, 0};
   std::vector<NodeHandles> handles_;  ///< per node; never resized once made
@@ -184,7 +191,7 @@ class SegmentBuilder {
   CostMemo<PositionProcessResidual> position_memo_;
   CostMemo<MarkovProcess<3>> rate_memo_, velocity_memo_;
   CostMemo<ZeroMotion> zero_velocity_memo_, zero_rate_memo_;
-  std::array<CostMemo<MarkovComponent<6>>, rover::kNumWheels> contact_memo_;
+  std::vector<CostMemo<MarkovComponent>> contact_memo_;  ///< one per wheel
   BlockEvaluator evaluator_;
 };
 
@@ -204,7 +211,8 @@ void SegmentBuilder::seedStates() {
     Eigen::Map<Vec3d>(b.x) = s.p_site;
     Eigen::Map<Vec3d>(b.v) = s.v_body;
     Eigen::Map<Vec3d>(b.w) = s.w_body;
-    for (int i = 0; i < 6; ++i) b.xi[i] = s.xi[static_cast<size_t>(i)];
+    std::fill(std::begin(b.xi), std::end(b.xi), 0.0);
+    for (int i = 0; i < nw_; ++i) b.xi[i] = s.xi[i];
     Eigen::Map<Vec3d>(b.b) = s.bias;
   }
   // Constant bias: the seed's at the segment's middle (the EKF has seen the first rest by then).
@@ -225,8 +233,9 @@ void SegmentBuilder::makeHandles() {
                    {b.x, 3, {node, C::kPosition, 3}, nullptr},
                    {b.v, 3, {node, C::kVelocity, 3}, nullptr},
                    {b.w, 3, {node, C::kRate, 3}, nullptr},
-                   {b.xi, 6, {node, C::kContact, 6}, nullptr},
-                   randomWalkBias() ? BlockHandle{b.b, 3, {node, C::kBias, bias_dim}, bias_manifold}
+                   {b.xi, nw_, {node, C::kContact, nw_}, nullptr},
+                   randomWalkBias()
+                       ? BlockHandle{b.b, 3, {node, C::bias(nw_), bias_dim}, bias_manifold}
                                     : segment_bias};
   }
 }
@@ -413,7 +422,7 @@ SegmentSolution SegmentBuilder::solve() {
   // have a cost function of their own (CostMemo shares the rest); reserving keeps the two lists
   // from being copied as they grow (at 10 000 nodes, 170 000 entries).
   residuals_.reserve(18 * n_ + 64, 10 * n_ + 64);
-  slip_data_.reserve(rover::kNumWheels * n_);
+  slip_data_.reserve(static_cast<size_t>(nw_) * n_);
   // Residuals node by node, so that Ceres' Jacobian rows run in time order like its columns
   // (chain ordering): forming JᵀJ and evaluating then sweep memory once, locally, instead of
   // once per kind of residual over the whole problem.
@@ -470,7 +479,7 @@ SegmentSolution SegmentBuilder::solve() {
     node.p_site = Eigen::Map<const Vec3d>(b.x);
     node.v_body = Eigen::Map<const Vec3d>(b.v);
     node.w_body = Eigen::Map<const Vec3d>(b.w);
-    for (int i = 0; i < 6; ++i) node.xi[static_cast<size_t>(i)] = b.xi[i];
+    node.xi = Eigen::Map<const rover::WheelVectord>(b.xi, nw_);
     node.bias = Eigen::Map<const Vec3d>(randomWalkBias() ? b.b : segment_bias_);
   }
   if (sum.status != SegmentStatus::kFallbackEkf && o_.covariance) {

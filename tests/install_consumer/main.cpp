@@ -10,9 +10,9 @@ int main() {
   const std::string dir = std::string(TRAVERSE_DATA_DIR) + "/rovers/rocky7/";
   const io::RoverConfig config = io::loadRoverConfig(dir + "rover.yaml");
   const rover::RoverGeometry geo = io::loadRoverGeometry(dir + "rover.urdf", config);
-  const auto kin = rover::forwardKinematics<double>(geo, rover::JointVectord::Zero());
-  rover::JointVectord rates = rover::JointVectord::Zero();
-  rates.tail<6>().setConstant(0.1 / 0.065);
+  const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
+  rover::JointVectord rates = geo.zeroJoints();
+  for (const rover::Wheel& w : geo.wheels) rates[w.coord] = 0.1 / w.radius;
   const Vec4d t = rover::slipConstraint<double>(kin[0].T_body_wheel, 0.065,
                                                 rover::wheelJointTwist(kin[0], rates),
                                                 Vec3d(0.1, 0, 0), Vec3d::Zero(), 0.0);

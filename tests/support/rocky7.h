@@ -6,6 +6,7 @@
 #include <string>
 
 #include "support/jacobian_check.h"
+#include "support/rocky7_coords.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/rover/joint_sample.h"
 #include "traverse/rover/slip_constraint.h"
@@ -24,11 +25,12 @@ inline const rover::RoverGeometry& rocky7() {
 /// (±0.5 rad/s): wheel frames and joint twists only (no covariances).
 inline rover::JointSample randomJointSample(std::mt19937& rng) {
   const rover::RoverGeometry& geo = rocky7();
-  const rover::JointVectord q = randomVector<rover::kNumCoords>(rng, 0.3);
-  const rover::JointVectord q_dot = randomVector<rover::kNumCoords>(rng, 0.5);
+  const rover::JointVectord q = randomVector<r7::kNumCoords>(rng, 0.3);
+  const rover::JointVectord q_dot = randomVector<r7::kNumCoords>(rng, 0.5);
   const auto kin = rover::forwardKinematics<double>(geo, q);
   rover::JointSample js;
-  for (int i = 0; i < rover::kNumWheels; ++i) {
+  js.resize(geo.numWheels());
+  for (int i = 0; i < r7::kNumWheels; ++i) {
     js.T_body_wheel[i] = kin[i].T_body_wheel;
     js.joint_twist[i] = rover::wheelJointTwist(kin[i], q_dot);
   }

@@ -1,8 +1,9 @@
 // Forward error-state EKF on the kinematic rover model (K §2.2, §3; O-1 … O-4; R-16 … R-21).
 //
 // Nominal state: attitude q (body → site), rate perturbation ω_p, position x (site), velocity
-// perturbation v_p (body), contact angles ξ1..ξ6, gyro bias b. Error state (21):
-//   [δθ (body small angle, q = q̂ ⊗ Exp(δθ)), δω_p, δx, δv_p, δξ, δb].
+// perturbation v_p (body), gyro bias b, contact angles ξ1..ξN (one per wheel of the rover's
+// URDF). Error state (15 + N):
+//   [δθ (body small angle, q = q̂ ⊗ Exp(δθ)), δω_p, δx, δv_p, δb, δξ].
 // Process (continuous-discrete): K-1 ẋ = R(q)(v_c + v_p), v̇_p = A_v v_p + n_v; K-2/K-7 attitude
 // with ω = ω_c + ω_p (gyro as a measurement, K-12) or the hybrid O-1 form ω = B_gᵀ(ω_m − b) +
 // ω_p on the measured axes (default; the gyro drives the heading); K-8 ξ̇ = A_ξ ξ + n_ξ;
@@ -23,13 +24,23 @@
 
 namespace traverse::est {
 
-inline constexpr int kEkfStates = 21;
-using EkfVector = Eigen::Matrix<double, kEkfStates, 1>;
-using EkfMatrix = Eigen::Matrix<double, kEkfStates, kEkfStates>;
+/// Size of the error state of a rover with `wheels` wheels, and its largest value.
+constexpr int ekfStates(int wheels) { return 15 + wheels; }
+inline constexpr int kMaxEkfStates = ekfStates(rover::kMaxWheels);
+/// Error-state vectors and matrices: fixed storage (no heap), size ekfStates(wheels).
+using EkfVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxEkfStates, 1>;
+using EkfMatrix =
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxEkfStates, kMaxEkfStates>;
+/// An M-row measurement Jacobian H (M × states) and an M-column gain (states × M).
+template <int M>
+using EkfRows = Eigen::Matrix<double, M, Eigen::Dynamic, M == 1 ? Eigen::RowMajor : Eigen::ColMajor,
+                              M, kMaxEkfStates>;
+template <int M>
+using EkfCols = Eigen::Matrix<double, Eigen::Dynamic, M, 0, kMaxEkfStates, M>;
 
-/// Offsets of the error-state blocks.
+/// Offsets of the error-state blocks (ξ last: its length is the rover's wheel count).
 struct EkfIndex {
-  static constexpr int kTheta = 0, kRate = 3, kPos = 6, kVel = 9, kXi = 12, kBias = 18;
+  static constexpr int kTheta = 0, kRate = 3, kPos = 6, kVel = 9, kBias = 12, kXi = 15;
 };
 
 struct EkfOptions {
@@ -77,9 +88,8 @@ struct EkfState {
   Vec3d w_p = Vec3d::Zero();     ///< rate perturbation ω_p (body)
   Vec3d p_site = Vec3d::Zero();  ///< position x (site)
   Vec3d v_p = Vec3d::Zero();     ///< velocity perturbation v_p (body; O-4: the body velocity)
-  Eigen::Matrix<double, rover::kNumWheels, 1> xi =
-      Eigen::Matrix<double, rover::kNumWheels, 1>::Zero();  ///< contact angles ξ1..ξ6
-  Vec3d bias = Vec3d::Zero();                               ///< gyro bias b
+  rover::WheelVectord xi;        ///< contact angles ξ1..ξN
+  Vec3d bias = Vec3d::Zero();    ///< gyro bias b
 };
 
 class Ekf {
@@ -91,7 +101,7 @@ class Ekf {
   /// by the midpoint rule, the covariance P ← Φ P Φᵀ + Q dt with Φ = I + F dt + ½ (F dt)² and
   /// F = processJacobian(in) at the state before the step.
   void propagate(double dt, const EkfInputs& in);
-  /// F = ∂(d δx/dt)/∂δx of the continuous error dynamics at the current nominal state (21×21,
+  /// F = ∂(d δx/dt)/∂δx of the continuous error dynamics at the current nominal state (n × n,
   /// error state as in the file comment). `v_dot` (optional): the nominal v̇_p of the O-4
   /// velocity model when the accelerometer drives it, else zero.
   EkfMatrix processJacobian(const EkfInputs& in, Vec3d* v_dot = nullptr) const;
@@ -119,7 +129,7 @@ class Ekf {
   /// (detail::josephUpdate), then absorb(K r). False (nothing changed) when S is not positive
   /// definite or, with gate > 0, when the innovation's r S⁻¹ r exceeds it. M = 1 … 4.
   template <int M>
-  bool update(const Eigen::Matrix<double, M, 1>& r, const Eigen::Matrix<double, M, kEkfStates>& H,
+  bool update(const Eigen::Matrix<double, M, 1>& r, const EkfRows<M>& H,
               const Eigen::Matrix<double, M, M>& R, double gate);
   /// Moves the nominal state by the error-state correction dx (attitude by K-21, q ⊗ Exp(dθ))
   /// and applies the reset Jacobian G = detail::resetJacobian(dθ) to P's attitude rows and
@@ -132,6 +142,8 @@ class Ekf {
   /// Replaces the covariance (tests; P must be symmetric positive semi-definite).
   void setCovariance(const EkfMatrix& P) { P_ = P; }
   EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_}; }
+  /// Size of the error state: ekfStates(number of wheels).
+  int numStates() const { return n_; }
   /// Replaces the nominal state (tests).
   void setState(const EkfState& s) {
     q_ = s.q_site_body, w_p_ = s.w_p, x_ = s.p_site, v_p_ = s.v_p, xi_ = s.xi, b_ = s.bias;
@@ -175,7 +187,8 @@ class Ekf {
   // Nominal state.
   Quatd q_;
   Vec3d w_p_, x_, v_p_, b_;
-  Eigen::Matrix<double, rover::kNumWheels, 1> xi_;
+  rover::WheelVectord xi_;
+  int nw_, n_;  ///< wheels, error-state size
   EkfMatrix P_;
   EkfStats stats_;
 };
@@ -207,25 +220,23 @@ Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample
 /// (tests/est_ekf_process_jacobian_test.cpp).
 namespace detail {
 
-/// Φ P Φᵀ with Φ = I + F dt + ½ (F dt)², over F's nonzeros only (F has ~50 of 441): with
+/// Φ P Φᵀ with Φ = I + F dt + ½ (F dt)², over F's nonzeros only (F has ~50 of 441 for six wheels):
 /// A = Φ − I, P + A P + P Aᵀ + A P Aᵀ by column operations. No process noise.
 EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P);
 /// The same, in place (the filter's form: no copy of P).
 void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P);
 
-/// P Hᵀ and S = H P Hᵀ + R over H's nonzero columns only (a slip row touches 8 of 21 states).
-/// M = 1 … 4.
+/// P Hᵀ and S = H P Hᵀ + R over H's nonzero columns only (a slip row touches 10 of 21 states
+/// of a six-wheel rover). M = 1 … 4.
 template <int M>
-void innovation(const EkfMatrix& P, const Eigen::Matrix<double, M, kEkfStates>& H,
-                const Eigen::Matrix<double, M, M>& R, Eigen::Matrix<double, kEkfStates, M>* PHt,
-                Eigen::Matrix<double, M, M>* S);
+void innovation(const EkfMatrix& P, const EkfRows<M>& H, const Eigen::Matrix<double, M, M>& R,
+                EkfCols<M>* PHt, Eigen::Matrix<double, M, M>* S);
 
 /// The Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ, expanded as P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ
 /// (valid for any gain K) from P Hᵀ and S of `innovation`, at rank-M cost; replaces *P. P stays
 /// exactly symmetric (lower triangle computed, then mirrored). M = 1 … 4.
 template <int M>
-void josephUpdate(EkfMatrix* P, const Eigen::Matrix<double, kEkfStates, M>& K,
-                  const Eigen::Matrix<double, kEkfStates, M>& PHt,
+void josephUpdate(EkfMatrix* P, const EkfCols<M>& K, const EkfCols<M>& PHt,
                   const Eigen::Matrix<double, M, M>& S);
 
 /// Reset Jacobian of the attitude error when dθ is absorbed into q̂ (q̂⁺ = q̂ ⊗ Exp(dθ)):

@@ -9,10 +9,9 @@
 
 #include "traverse/core/types.h"
 #include "traverse/io/log.h"
+#include "traverse/rover/rover_geometry.h"
 
 namespace traverse::est {
-
-inline constexpr int kNumWheels = 6;
 
 /// One estimator node. Attitude error convention: q = q̂ ⊗ Exp(δθ) (body-frame small angle).
 struct TrajectoryNode {
@@ -21,7 +20,7 @@ struct TrajectoryNode {
   Quatd q_site_body = Quatd::Identity();
   Vec3d v_body = Vec3d::Zero();
   Vec3d w_body = Vec3d::Zero();
-  std::array<double, kNumWheels> xi{};
+  rover::WheelVectord xi;  ///< contact angles ξ1..ξN, one per wheel
   Vec3d bias = Vec3d::Zero();  ///< gyro bias (rad/s, body axes)
   /// Covariance of [δp_site (m); δθ_body (rad)] — valid when the trajectory has_covariance.
   Mat6d covariance = Mat6d::Zero();
@@ -34,7 +33,8 @@ struct Trajectory {
   std::vector<TrajectoryNode> nodes;
 };
 
-/// Output columns (outputs.md): t,x,y,z,qw,qx,qy,qz,vx,vy,vz,wx,wy,wz,xi1..xi6,bx,by,bz, then
+/// Output columns (outputs.md): t,x,y,z,qw,qx,qy,qz,vx,vy,vz,wx,wy,wz,xi1..xiN (N wheels, the
+/// size of the nodes' xi),bx,by,bz, then
 /// with covariance the 1σ columns sx,sy,sz,sroll,spitch,syaw (attitude σ: body-frame small
 /// angles about x, y, z, radians) and the off-diagonal terms cxy,cxz,cyz (m²) and
 /// crp,cry,cpy (rad²) of the position and attitude blocks, appended so that NEES can be

@@ -13,6 +13,7 @@
 
 #include "traverse/core/types.h"
 #include "traverse/io/log.h"
+#include "traverse/rover/rover_geometry.h"
 
 namespace traverse::eval {
 
@@ -35,7 +36,7 @@ class TruthTrajectory {
   Vec3d position(double t) const;  ///< p_site, m
   Quatd attitude(double t) const;  ///< q_site_body (body → site)
   /// The methods below throw std::logic_error when their group is absent.
-  std::array<double, 6> contactAngles(double t) const;  ///< ξ1…ξ6, rad
+  rover::WheelVectord contactAngles(double t) const;  ///< ξ1…ξN, rad
   Vec3d bias(double t) const;                           ///< gyro bias, rad/s, body axes
   Vec3d velocityBody(double t) const;                   ///< m/s
   Vec3d bodyRate(double t) const;                       ///< rad/s
@@ -63,7 +64,7 @@ class TruthTrajectory {
   std::vector<double> t_;
   std::vector<Vec3d> p_;
   std::vector<Quatd> q_;
-  std::vector<std::array<double, 6>> xi_;
+  std::vector<rover::WheelVectord> xi_;
   std::vector<Vec3d> bias_, v_, w_;
   std::vector<double> s_;  ///< cumulative polyline length at each sample, m
   bool has_xi_ = false, has_bias_ = false, has_velocity_ = false, has_rate_ = false;

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "traverse/io/log.h"
+#include "traverse/rover/rover_geometry.h"
 
 namespace traverse::io {
 
@@ -50,7 +51,12 @@ struct StreamSpec {
 
 /// The contract's spec of a log stream by file name: "gyro.csv", "joints.csv", "sun.csv",
 /// "accel.csv", "cmd.csv", "truth.csv" or "gps.csv". Throws std::out_of_range for any other name.
+/// Without a rover, joints.csv may have any columns and truth.csv contact angles for any number
+/// of wheels.
 const StreamSpec& logStreamSpec(std::string_view file_name);
+/// The same for one rover: joints.csv carries exactly its coordinates (RoverGeometry::coords,
+/// in order), truth.csv its wheels' contact angles xi1..xiN.
+StreamSpec logStreamSpec(std::string_view file_name, const rover::RoverGeometry& geometry);
 
 /// Reads one stream file. Errors: InputError(file, line, message).
 Stream readCsv(const std::filesystem::path& file, const StreamSpec& spec,

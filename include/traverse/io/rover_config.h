@@ -9,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "traverse/core/types.h"
@@ -91,8 +92,10 @@ struct RoverConfig {
   int format = 1;
   std::string name = "rover";
   std::string urdf_file = "rover.urdf";
-  /// joints.csv column → URDF joint name; columns not listed use the column name itself.
-  std::map<std::string, std::string> joint_names;
+  /// joints.csv column → URDF joint name, in the file's order, which is the joints.csv column
+  /// order. Empty: every movable, non-mimic URDF joint is a column named after it, in the
+  /// URDF's document order (io/rover_description.h).
+  std::vector<std::pair<std::string, std::string>> joint_names;
   std::optional<double> turn_centre_x_m;  ///< default: mean x of the unsteered wheels
   double gravity_mps2 = 9.80665;
   GyroConfig gyro;

@@ -3,7 +3,7 @@
 // est::jointSamples.
 #pragma once
 
-#include <array>
+#include <vector>
 
 #include "traverse/core/se3.h"
 #include "traverse/core/types.h"
@@ -22,12 +22,18 @@ struct SlipNoise {
 /// Joint data at a joint sample: wheel frames g_{s f_i} and the wheels' joint twists J q̇ (K-17).
 struct JointSample {
   double t = 0.0;
-  std::array<Posed, kNumWheels> T_body_wheel;
-  std::array<Twistd, kNumWheels> joint_twist;
+  std::vector<Posed> T_body_wheel;  ///< one per wheel of the geometry
+  std::vector<Twistd> joint_twist;
   /// Covariance of each joint twist J q̇ from the joint-rate noise (J Σ_q̇ Jᵀ, 6×6), and the
   /// steering-angle variance of the wheel's chain (0 for unsteered wheels).
-  std::array<Mat6d, kNumWheels> joint_twist_covariance;
-  std::array<double, kNumWheels> steering_variance{};
+  std::vector<Mat6d> joint_twist_covariance;
+  std::vector<double> steering_variance;
+  /// Sizes every per-wheel vector for `n` wheels.
+  void resize(int n) {
+    const auto m = static_cast<size_t>(n);
+    T_body_wheel.resize(m), joint_twist.resize(m), joint_twist_covariance.resize(m);
+    steering_variance.assign(m, 0.0);
+  }
 };
 
 /// Covariance of wheel i's four slip rows (K-17): the slip noise, plus the joint-rate noise

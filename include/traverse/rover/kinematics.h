@@ -1,4 +1,4 @@
-// Rocker-bogie forward kinematics, spatial Jacobian and contact frames (K §2.1, K-17 … K-19).
+// Forward kinematics, spatial Jacobian and contact frames (K §2.1, K-17 … K-19).
 //
 // Forward kinematics composes the joint transforms of the URDF tree (product of exponentials
 // about each joint axis). The spatial Jacobian J^s_{s f_i} maps the joint-rate vector q̇ to the
@@ -7,15 +7,16 @@
 // times its mimic multiplier, for the joints on the wheel's chain, zero elsewhere.
 #pragma once
 
-#include <array>
+#include <vector>
 
 #include "traverse/core/se3.h"
 #include "traverse/rover/rover_geometry.h"
 
 namespace traverse::rover {
 
+/// J^s_{s f_i}: 6 × numCoords (fixed storage of kMaxCoords columns).
 template <typename T>
-using WheelJacobian = Eigen::Matrix<T, 6, kNumCoords>;
+using WheelJacobian = Eigen::Matrix<T, 6, Eigen::Dynamic, 0, 6, kMaxCoords>;
 
 template <typename T>
 struct WheelKinematicsT {
@@ -24,8 +25,9 @@ struct WheelKinematicsT {
 };
 using WheelKinematics = WheelKinematicsT<double>;
 
+/// One entry per wheel of the geometry.
 template <typename T>
-using RoverKinematicsT = std::array<WheelKinematicsT<T>, kNumWheels>;
+using RoverKinematicsT = std::vector<WheelKinematicsT<T>>;
 using RoverKinematics = RoverKinematicsT<double>;
 
 /// Pose of every joint frame in the body frame (after the joint's own rotation) for joint
@@ -55,11 +57,11 @@ template <typename T>
 RoverKinematicsT<T> forwardKinematics(const RoverGeometry& geometry, const JointVector<T>& q) {
   std::vector<Pose<T>> before;
   const std::vector<Pose<T>> after = jointPoses(geometry, q, &before);
-  RoverKinematicsT<T> out;
-  for (int i = 0; i < kNumWheels; ++i) {
+  RoverKinematicsT<T> out(geometry.wheels.size());
+  for (size_t i = 0; i < out.size(); ++i) {
     const int d = geometry.wheels[i].drive_joint;
     out[i].T_body_wheel = before[d];
-    out[i].J.setZero();
+    out[i].J.setZero(6, geometry.numCoords());
     for (int j = d; j >= 0; j = geometry.joints[j].parent) {
       const KinematicJoint& jt = geometry.joints[j];
       if (jt.coord < 0) continue;

@@ -36,14 +36,15 @@ inline Twistd wheelJointTwist(const WheelKinematics& wk, const JointVectord& q_d
   return wk.J * q_dot;
 }
 
-/// All six wheels stacked (24 rows: wheel 1 rows 0-3, …).
+/// All wheels stacked (4 rows per wheel: wheel 1 rows 0-3, …).
 template <typename T>
-Eigen::Matrix<T, kSlipRows * kNumWheels, 1> slipConstraintAll(
-    const RoverGeometry& geometry, const RoverKinematics& kin,
-    const std::array<Twistd, kNumWheels>& joint_twists, const Vec3<T>& v_body,
-    const Vec3<T>& w_body, const Eigen::Matrix<T, kNumWheels, 1>& xi) {
-  Eigen::Matrix<T, kSlipRows * kNumWheels, 1> t;
-  for (int i = 0; i < kNumWheels; ++i) {
+Eigen::Matrix<T, Eigen::Dynamic, 1> slipConstraintAll(const RoverGeometry& geometry,
+                                                      const RoverKinematics& kin,
+                                                      const std::vector<Twistd>& joint_twists,
+                                                      const Vec3<T>& v_body, const Vec3<T>& w_body,
+                                                      const WheelVector<T>& xi) {
+  Eigen::Matrix<T, Eigen::Dynamic, 1> t(kSlipRows * geometry.numWheels());
+  for (int i = 0; i < geometry.numWheels(); ++i) {
     t.template segment<kSlipRows>(kSlipRows * i) = slipConstraint(
         kin[i].T_body_wheel, geometry.wheels[i].radius, joint_twists[i], v_body, w_body, xi[i]);
   }

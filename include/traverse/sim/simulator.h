@@ -1,4 +1,4 @@
-// The traverse simulator: a rocker-bogie rover driven along a scenario's path over its terrain,
+// The traverse simulator: a rover (any URDF: rocker-bogie, rigid, …) driven along a scenario's path over its terrain,
 // with ground truth at a high internal rate and every sensor sampled from it at its own rate
 // through the same measurement models the estimators use (docs/simulator.md).
 #pragma once
@@ -21,10 +21,10 @@ struct TruthSample {
   Quatd q_site_body = Quatd::Identity();
   Vec3d v_body = Vec3d::Zero(), w_body = Vec3d::Zero();
   Vec3d a_body = Vec3d::Zero(), w_dot_body = Vec3d::Zero();  ///< body-frame derivatives of v, ω
-  rover::JointVectord joints = rover::JointVectord::Zero();  ///< γ, λ, ψ
-  rover::JointVectord joint_rates = rover::JointVectord::Zero();
-  std::array<double, rover::kNumWheels> xi{};
-  std::array<double, rover::kNumWheels> slip_longitudinal_mps{};  ///< injected, per wheel
+  rover::JointVectord joints;  ///< every coordinate, in RoverGeometry::coords order
+  rover::JointVectord joint_rates;
+  rover::WheelVectord xi;                     ///< contact angles, one per wheel
+  rover::WheelVectord slip_longitudinal_mps;  ///< injected, per wheel
   Vec3d gyro_bias = Vec3d::Zero();
   Twistd cmd = Twistd::Zero();  ///< commanded body twist (path without slip)
   bool moving = false;          ///< inside a motion leg (not rest or steering)
@@ -49,8 +49,8 @@ struct PathSample {
   double t = 0.0;
   Vec2d centre = Vec2d::Zero();  ///< turn-centre point, site x, y
   double yaw = 0.0;
-  Vec2d steering = Vec2d::Zero();
-  double speed_mps = 0.0;       ///< commanded speed of the turn-centre point
+  rover::JointVectord steering;  ///< steering angles, one per steering coordinate
+  double speed_mps = 0.0;        ///< commanded speed of the turn-centre point
   double yaw_rate_rad_s = 0.0;  ///< commanded yaw rate
   double progress = 0.0;        ///< |speed| / cruise in [0, 1] (0 at rest)
   bool moving = false;

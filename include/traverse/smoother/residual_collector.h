@@ -33,12 +33,13 @@ struct BlockHandle {
   ceres::Manifold* manifold = nullptr;  ///< nullptr: Euclidean
 };
 
-/// A node's tangent columns in the chain information (ChainPlace::col): δθ, x, v, ω, ξ, then,
-/// with the random-walk bias model, the node's own bias.
+/// A node's tangent columns in the chain information (ChainPlace::col): δθ, x, v, ω, ξ (one per
+/// wheel), then, with the random-walk bias model, the node's own bias.
 struct NodeColumns {
   static constexpr int kAttitude = 0, kPosition = 3, kVelocity = 6, kRate = 9, kContact = 12;
-  static constexpr int kBias = 18;
-  static constexpr int kStates = 18;  ///< columns before the bias
+  /// Columns before the bias, and the bias's first column, for a rover with `wheels` wheels.
+  static constexpr int states(int wheels) { return kContact + wheels; }
+  static constexpr int bias(int wheels) { return kContact + wheels; }
 };
 
 /// Node k's blocks. `bias` is the gyro bias its residuals use: the node's own (random-walk

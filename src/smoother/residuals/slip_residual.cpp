@@ -13,11 +13,12 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                       const rover::JointSample& js, const est::TrajectoryNode& seed,
                       const Twistd& nominal_twist, ceres::LossFunction* loss,
                       const NodeHandles& k) {
-  for (int i = 0; i < rover::kNumWheels; ++i) {
+  const int nw = geometry.numWheels();
+  for (int i = 0; i < nw; ++i) {
     const double radius = geometry.wheels[i].radius;
     Eigen::Matrix<double, 4, 7> J;
     rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], seed.v_body,
-                                      seed.w_body, seed.xi[static_cast<size_t>(i)], &J);
+                                      seed.w_body, seed.xi[i], &J);
     const Eigen::Matrix4d R =
         rover::slipCovariance(noise, js, i, seed.v_body, seed.w_body, J.leftCols<6>());
     const Vec4d nominal =
@@ -26,7 +27,7 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
       throw std::logic_error("smoother: slip data would move under its cost functions");
     data.push_back(
         {js.T_body_wheel[i], radius, js.joint_twist[i], nominal, sqrtInformation<4>(R, "slip")});
-    out.add("slip", new SlipResidual(i, &data.back()), loss, k.v, k.w, k.xi);
+    out.add("slip", new SlipResidual(i, nw, &data.back()), loss, k.v, k.w, k.xi);
   }
 }
 

@@ -7,6 +7,7 @@
 #include <concepts>
 #include <utility>
 
+#include <ceres/cost_function.h>
 #include <ceres/sized_cost_function.h>
 
 namespace traverse::smoother {
@@ -18,6 +19,29 @@ class AnalyticCost final : public ceres::SizedCostFunction<kResiduals, kSizes...
   template <typename... Args>
   requires std::constructible_from<Functor, Args...>
   explicit AnalyticCost(Args&&... args) : f_(std::forward<Args>(args)...) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    return f_.Evaluate(parameters, residuals, jacobians);
+  }
+
+  const Functor& functor() const { return f_; }
+
+ private:
+  Functor f_;
+};
+
+/// The same for parameter blocks whose sizes are known at run time only (a rover's contact
+/// angles: one per wheel). The functor says them: numResiduals() and blockSizes().
+template <typename Functor>
+class DynamicAnalyticCost final : public ceres::CostFunction {
+ public:
+  template <typename... Args>
+  requires std::constructible_from<Functor, Args...>
+  explicit DynamicAnalyticCost(Args&&... args) : f_(std::forward<Args>(args)...) {
+    set_num_residuals(f_.numResiduals());
+    for (const int size : f_.blockSizes()) mutable_parameter_block_sizes()->push_back(size);
+  }
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <vector>
 
 #include <ceres/sized_cost_function.h>
 
@@ -85,23 +86,26 @@ using MarkovProcessResidual = AnalyticCost<MarkovProcess<N>, N, N, N>;
 
 namespace traverse::smoother {
 
-/// One component i of a zero-mean N-dimensional process of the header, as its own one-row
-/// residual over the full N-vectors: r = (y_{k+1,i} − φ y_{k,i}) / σ. The smoother uses it for
-/// K-8 per wheel, so that a robust loss acts on each wheel's contact-angle increment alone: a
-/// wheel meeting an edge changes its contact angle by many σ of the Gaussian process within a
-/// few samples, and a loss on the six-wheel block would charge that jump to all six.
-template <int N>
+/// One component i of a zero-mean n-dimensional process of the header, as its own one-row
+/// residual over the full n-vectors: r = (y_{k+1,i} − φ y_{k,i}) / σ. The smoother uses it for
+/// K-8 per wheel (n = the rover's wheel count), so that a robust loss acts on each wheel's
+/// contact-angle increment alone: a wheel meeting an edge changes its contact angle by many σ
+/// of the Gaussian process within a few samples, and a loss on the whole block would charge
+/// that jump to every wheel.
 class MarkovComponent {
  public:
-  /// component in [0, N); a: rate (1/s, ≤ 0), q: noise density (units² / s).
-  MarkovComponent(int component, double dt, double a, double q) : i_(component), step_(dt, a, q) {}
+  /// component in [0, size); a: rate (1/s, ≤ 0), q: noise density (units² / s).
+  MarkovComponent(int component, int size, double dt, double a, double q)
+      : i_(component), n_(size), step_(dt, a, q) {}
+  int numResiduals() const { return 1; }
+  std::array<int, 2> blockSizes() const { return {n_, n_}; }
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
     residuals[0] = step_.sqrt_info * (parameters[1][i_] - step_.phi * parameters[0][i_]);
     if (jacobians) {
       for (int k = 0; k < 2; ++k) {
         if (!jacobians[k]) continue;
-        std::fill(jacobians[k], jacobians[k] + N, 0.0);
+        std::fill(jacobians[k], jacobians[k] + n_, 0.0);
         jacobians[k][i_] = k == 0 ? -step_.phi * step_.sqrt_info : step_.sqrt_info;
       }
     }
@@ -114,39 +118,40 @@ class MarkovComponent {
   bool operator==(const MarkovComponent&) const = default;
 
   static ceres::CostFunction* Create(const MarkovComponent& f) {
-    return new AnalyticCost<MarkovComponent, 1, N, N>(f);
+    return new DynamicAnalyticCost<MarkovComponent>(f);
   }
 
  private:
-  int i_;
+  int i_, n_;
   MarkovStep step_;
 };
 
-/// Cost function: parameter blocks y_k, y_{k+1} (N each), one row.
-template <int N>
-using MarkovComponentResidual = AnalyticCost<MarkovComponent<N>, 1, N, N>;
+/// Cost function: parameter blocks y_k, y_{k+1} (n each), one row.
+using MarkovComponentResidual = DynamicAnalyticCost<MarkovComponent>;
 
 /// The process's stationary distribution at a segment's first node (e.g. K-8's contact angles,
-/// ξ ~ N(0, q τ / 2)): r = y / σ. Without it a contact angle no wheel constrains would be
-/// unobservable.
-template <int N>
-class StationaryPriorResidual final : public ceres::SizedCostFunction<N, N> {
+/// ξ ~ N(0, q τ / 2)): r = y / σ, one block of sigma.size(). Without it a contact angle no wheel
+/// constrains would be unobservable.
+class StationaryPriorResidual final : public ceres::CostFunction {
  public:
-  using VecN = Eigen::Matrix<double, N, 1>;
-  explicit StationaryPriorResidual(const VecN& sigma) : sqrt_info_(sigma.cwiseInverse()) {}
+  explicit StationaryPriorResidual(const Eigen::VectorXd& sigma) : sqrt_info_(sigma.cwiseInverse()) {
+    set_num_residuals(static_cast<int>(sigma.size()));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(sigma.size()));
+  }
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    Eigen::Map<VecN>{residuals} = sqrt_info_.cwiseProduct(Eigen::Map<const VecN>(parameters[0]));
-    if (jacobians && jacobians[0]) {
-      using RowMajorN = Eigen::Matrix<double, N, N, N == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
-      Eigen::Map<RowMajorN>{jacobians[0]} = sqrt_info_.asDiagonal();
+    const auto n = sqrt_info_.size();
+    Eigen::Map<Eigen::VectorXd>(residuals, n) =
+        sqrt_info_.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(parameters[0], n));
+    if (jacobians && jacobians[0]) {  // n × n, row-major (diagonal: the same either way)
+      Eigen::Map<Eigen::MatrixXd>(jacobians[0], n, n) = sqrt_info_.asDiagonal();
     }
     return true;
   }
 
  private:
-  VecN sqrt_info_;
+  Eigen::VectorXd sqrt_info_;
 };
 
 // Constraints (residual_collector.h): this file's residuals in a segment problem, between nodes
@@ -178,26 +183,18 @@ inline void addVelocityProcess(ResidualCollector& out, CostMemo<MarkovProcess<3>
   addTwistProcess(out, "velocity", memo, &NodeHandles::v, dt, a, q, cmd_k, cmd_k1, k, k1);
 }
 
-/// Contact angles (K-8), time constant τ and noise density n_ξ. Blocks ξ_k, ξ_{k+1}. With a
-/// loss, one row per wheel under it (SmootherOptions::contact_loss_scale; one memo per wheel);
-/// without, the Gaussian six-row process.
-inline void addContactProcess(ResidualCollector& out,
-                              std::array<CostMemo<MarkovComponent<6>>, rover::kNumWheels>& memos,
+/// Contact angles (K-8), time constant τ and noise density n_ξ. Blocks ξ_k, ξ_{k+1} (one angle
+/// per wheel: `memos` has one entry per wheel). One row per wheel, under the loss when there is
+/// one (SmootherOptions::contact_loss_scale), else Gaussian.
+inline void addContactProcess(ResidualCollector& out, std::vector<CostMemo<MarkovComponent>>& memos,
                               double dt, double time_constant, double noise,
                               ceres::LossFunction* loss, const NodeHandles& k,
                               const NodeHandles& k1) {
-  if (loss) {
-    const double a = -1.0 / time_constant;
-    for (int i = 0; i < rover::kNumWheels; ++i)
-      out.addShared("contact", memos[static_cast<size_t>(i)],
-                    MarkovComponent<6>(i, dt, a, noise * noise), loss, k.xi, k1.xi);
-  } else {
-    using Vec6 = Eigen::Matrix<double, 6, 1>;
-    out.add("contact",
-            new MarkovProcessResidual<6>(dt, Vec6::Constant(-1.0 / time_constant),
-                                         Vec6::Constant(noise * noise), Vec6::Zero(), Vec6::Zero()),
-            nullptr, k.xi, k1.xi);
-  }
+  const double a = -1.0 / time_constant;
+  const int n = k.xi.size;
+  for (int i = 0; i < n; ++i)
+    out.addShared("contact", memos[static_cast<size_t>(i)],
+                  MarkovComponent(i, n, dt, a, noise * noise), loss, k.xi, k1.xi);
 }
 
 /// Gyro bias random walk (K-9, the random-walk bias model), σ_b per √s. Blocks b_k, b_{k+1}.
@@ -214,8 +211,8 @@ inline void addBiasWalk(ResidualCollector& out, double dt, double walk, const No
 inline void addContactPrior(ResidualCollector& out, double time_constant, double noise,
                             const NodeHandles& k) {
   const double sigma = noise * std::sqrt(0.5 * time_constant);
-  using Vec6 = Eigen::Matrix<double, 6, 1>;
-  out.add("contact_prior", new StationaryPriorResidual<6>(Vec6::Constant(sigma)), nullptr, k.xi);
+  out.add("contact_prior", new StationaryPriorResidual(Eigen::VectorXd::Constant(k.xi.size, sigma)),
+          nullptr, k.xi);
 }
 
 }  // namespace traverse::smoother

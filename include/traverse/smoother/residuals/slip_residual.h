@@ -8,14 +8,14 @@
 // steering-angle noise (as in the EKF; evaluated once, at the seed). A robust loss is attached
 // where the residual is added.
 //
-// This is the smoother's hot residual (24 rows per node), so its Jacobian is analytic —
+// This is the smoother's hot residual (four rows per wheel and node), so its Jacobian is analytic —
 // rover::slipConstraintWithJacobian, itself tested against the Jet derivative of
 // rover::slipConstraint, the templated model every estimator shares.
 //
-// Parameter blocks: v (body, m/s), ω (body, rad/s), ξ (all six contact angles, rad).
+// Parameter blocks: v (body, m/s), ω (body, rad/s), ξ (every wheel's contact angle, rad).
 #pragma once
 
-#include <ceres/sized_cost_function.h>
+#include <ceres/cost_function.h>
 
 #include <memory>
 #include <vector>
@@ -37,20 +37,25 @@ struct SlipWheelData {
   Eigen::Matrix4d sqrt_info = Eigen::Matrix4d::Identity();
 };
 
-class SlipResidual final : public ceres::SizedCostFunction<4, 3, 3, 6> {
+class SlipResidual final : public ceres::CostFunction {
  public:
-  /// Keeps its own copy of the numbers.
-  SlipResidual(int wheel, const Posed& T_body_wheel, double radius, const Twistd& joint_twist,
-               const Vec4d& nominal_slip, const Eigen::Matrix4d& sqrt_info)
+  /// Wheel `wheel` of `wheels` (the size of the ξ block). Keeps its own copy of the numbers.
+  SlipResidual(int wheel, int wheels, const Posed& T_body_wheel, double radius,
+               const Twistd& joint_twist, const Vec4d& nominal_slip,
+               const Eigen::Matrix4d& sqrt_info)
       : wheel_(wheel),
         owned_(std::make_unique<SlipWheelData>(
             SlipWheelData{T_body_wheel, radius, joint_twist, nominal_slip, sqrt_info})),
-        d_(owned_.get()) {}
+        d_(owned_.get()) {
+    setSizes(wheels);
+  }
   /// Refers to numbers kept elsewhere, which must outlive it. The smoother keeps a segment's in
   /// one array: the cost function is then 56 bytes instead of 350, and Ceres' passes over every
   /// residual block's cost function (sizes, row counts) read a dense run of memory instead of
   /// one cache line every 370 bytes (docs/results.md, "Speed", session 6).
-  SlipResidual(int wheel, const SlipWheelData* data) : wheel_(wheel), d_(data) {}
+  SlipResidual(int wheel, int wheels, const SlipWheelData* data) : wheel_(wheel), d_(data) {
+    setSizes(wheels);
+  }
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
@@ -63,11 +68,11 @@ class SlipResidual final : public ceres::SizedCostFunction<4, 3, 3, 6> {
     Eigen::Map<Vec4d>{residuals} = d.sqrt_info * (d.nominal_slip - t);
     if (jacobians) {
       using Rm43 = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>;
-      using Rm46 = Eigen::Matrix<double, 4, 6, Eigen::RowMajor>;
+      using Rm4X = Eigen::Matrix<double, 4, Eigen::Dynamic, Eigen::RowMajor>;
       if (jacobians[0]) Eigen::Map<Rm43>{jacobians[0]} = -d.sqrt_info * J.leftCols<3>();
       if (jacobians[1]) Eigen::Map<Rm43>{jacobians[1]} = -d.sqrt_info * J.middleCols<3>(3);
       if (jacobians[2]) {
-        Eigen::Map<Rm46> Jxi(jacobians[2]);
+        Eigen::Map<Rm4X> Jxi(jacobians[2], 4, parameter_block_sizes()[2]);
         Jxi.setZero();
         Jxi.col(wheel_) = -d.sqrt_info * J.col(6);
       }
@@ -76,8 +81,8 @@ class SlipResidual final : public ceres::SizedCostFunction<4, 3, 3, 6> {
   }
 
   /// The same residual through the templated model (the autodiff twin the tests compare with).
-  template <typename T>
-  Vec4<T> residual(const Vec3<T>& v, const Vec3<T>& w, const Eigen::Matrix<T, 6, 1>& xi) const {
+  template <typename T, typename Xi>
+  Vec4<T> residual(const Vec3<T>& v, const Vec3<T>& w, const Xi& xi) const {
     const SlipWheelData& d = *d_;
     const Vec4<T> t =
         rover::slipConstraint<T>(d.T_body_wheel, d.radius, d.joint_twist, v, w, xi[wheel_]);
@@ -85,12 +90,17 @@ class SlipResidual final : public ceres::SizedCostFunction<4, 3, 3, 6> {
   }
 
  private:
+  void setSizes(int wheels) {
+    set_num_residuals(4);
+    *mutable_parameter_block_sizes() = {3, 3, wheels};
+  }
+
   int wheel_;
   std::unique_ptr<SlipWheelData> owned_;  ///< set by the owning constructor only
   const SlipWheelData* d_;
 };
 
-/// Constraint (residual_collector.h): the six wheels' slip residuals at node k, under the robust
+/// Constraint (residual_collector.h): every wheel's slip residuals at node k, under the robust
 /// loss. Blocks v_k, ω_k, ξ_k. Σ is the slip noise plus the joint-rate and steering noise carried
 /// through at the seed's states (rover::slipCovariance); t_nom the nominal slip of the nominal
 /// body twist (rover::nominalSlip). Each wheel's numbers are appended to `data`, which the cost
