@@ -54,10 +54,13 @@ Trajectory deadReckoning(const io::TraverseLog& log, const Segmentation& seg,
     const double bias = w && w->gyro_samples > 1 ? w->bias.z() : init.bias.z();
     const double roll = w && w->has_gravity ? w->roll_pitch.roll_pitch.x() : rpy0.x();
     const double pitch = w && w->has_gravity ? w->roll_pitch.roll_pitch.y() : rpy0.y();
-    double speed = 0.0;
-    for (const rover::Wheel& w : log.geometry.wheels) speed += w.radius * rates(k, w.coord);
-    speed /= log.geometry.numWheels();
+    // Each wheel rolls at v_x − ω_z y_ICR (skid steering; y_ICR = the wheel's own y otherwise,
+    // which the symmetric sides cancel): v_x = mean(r ψ̇ + ω_z (y + icr_offset_y)).
     const double rate = gyroZ(log.gyro, t) - bias;
+    double speed = 0.0;
+    for (const rover::Wheel& w : log.geometry.wheels)
+      speed += w.radius * rates(k, w.coord) + rate * w.icr_offset_y;
+    speed /= log.geometry.numWheels();
     if (k > 0) {  // trapezoid on heading and on the horizontal velocity
       const double dt = t - j.t[k - 1];
       const double yaw0 = yaw;

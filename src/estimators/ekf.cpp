@@ -344,7 +344,8 @@ Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample
                                                     s.segment<3>(3), s[6], &J);
   const Twistd nominal_twist =
       commanded ? *commanded : rover::nominalBodyTwist(geometry, s[0], s[5]);
-  const Vec4d r = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, jt) - t;
+  const double icr = geometry.wheels[i].icr_offset_y;
+  const Vec4d r = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, jt, icr) - t;
   *H = J;
   if (dt_ds) *dt_ds = J;
   if (!commanded) {
@@ -358,6 +359,7 @@ Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample
       (*H)(row, 0) -= J0(row, 0);
       (*H)(row, 5) -= J0(row, 5) - geometry.turn_centre_x * J0(row, 1);
     }
+    (*H)(0, 5) -= icr;  // the skid-steer longitudinal nominal ω_z · icr_offset_y
   }
   return r;
 }

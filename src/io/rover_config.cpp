@@ -95,13 +95,30 @@ void readSun(const YamlReader& r, const YAML::Node& root, SunConfig& sun) {
 
 void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   const YAML::Node s = r.section(root, "slip_noise",
-                                 {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s"});
+                                 {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s",
+                                  "longitudinal_per_yaw_rate_m", "lateral_per_yaw_rate_m",
+                                  "longitudinal_per_speed"});
   auto& sn = c.slip_noise;
   sn.longitudinal_mps =
       r.number(s, "slip_noise", "longitudinal_mps", sn.longitudinal_mps, 1e-9, 10.0);
   sn.lateral_mps = r.number(s, "slip_noise", "lateral_mps", sn.lateral_mps, 1e-9, 10.0);
   sn.normal_mps = r.number(s, "slip_noise", "normal_mps", sn.normal_mps, 1e-9, 10.0);
   sn.spin_rad_s = r.number(s, "slip_noise", "spin_rad_s", sn.spin_rad_s, 1e-9, 10.0);
+  sn.longitudinal_per_yaw_rate_m = r.number(s, "slip_noise", "longitudinal_per_yaw_rate_m",
+                                            sn.longitudinal_per_yaw_rate_m, 0.0, 10.0);
+  sn.lateral_per_yaw_rate_m =
+      r.number(s, "slip_noise", "lateral_per_yaw_rate_m", sn.lateral_per_yaw_rate_m, 0.0, 10.0);
+  sn.longitudinal_per_speed =
+      r.number(s, "slip_noise", "longitudinal_per_speed", sn.longitudinal_per_speed, 0.0, 10.0);
+  const YAML::Node ss = r.section(root, "skid_steer", {"icr_y_left_m", "icr_y_right_m"});
+  if (root["skid_steer"].IsDefined() && !root["skid_steer"].IsNull()) {
+    SkidSteerConfig k;
+    k.icr_y_left_m = r.number(ss, "skid_steer", "icr_y_left_m", 0.0, 0.0, 100.0);
+    k.icr_y_right_m = r.number(ss, "skid_steer", "icr_y_right_m", 0.0, -100.0, 0.0);
+    if (!ss["icr_y_left_m"].IsDefined() || !ss["icr_y_right_m"].IsDefined())
+      r.fail(ss, "skid_steer", "needs both icr_y_left_m and icr_y_right_m");
+    c.skid_steer = k;
+  }
 
   const YAML::Node p =
       r.section(root, "process",
@@ -166,7 +183,8 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   r.onlyKeys(
       root, "",
       {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "sun_sensor",
-       "accelerometer", "sun", "slip_noise", "process", "joint_sensors", "smoother", "gps"});
+       "accelerometer", "sun", "slip_noise", "skid_steer", "process", "joint_sensors", "smoother",
+       "gps"});
   RoverConfig c;
   if (!root["format"].IsDefined()) throw InputError(file, 0, "key 'format': missing (expected 1)");
   c.format = r.integer(root, "", "format", 0, 0, 1000);
@@ -253,8 +271,19 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   out << YAML::Key << "slip_noise" << YAML::Value << YAML::BeginMap << YAML::Key
       << "longitudinal_mps" << YAML::Value << num(s.longitudinal_mps) << YAML::Key << "lateral_mps"
       << YAML::Value << num(s.lateral_mps) << YAML::Key << "normal_mps" << YAML::Value
-      << num(s.normal_mps) << YAML::Key << "spin_rad_s" << YAML::Value << num(s.spin_rad_s)
-      << YAML::EndMap;
+      << num(s.normal_mps) << YAML::Key << "spin_rad_s" << YAML::Value << num(s.spin_rad_s);
+  // The slip that grows with the motion: written when used (older files stay byte-identical).
+  for (const auto& [key, value] : {std::pair{"longitudinal_per_yaw_rate_m", s.longitudinal_per_yaw_rate_m},
+                                   std::pair{"lateral_per_yaw_rate_m", s.lateral_per_yaw_rate_m},
+                                   std::pair{"longitudinal_per_speed", s.longitudinal_per_speed}}) {
+    if (value != 0.0) out << YAML::Key << key << YAML::Value << num(value);
+  }
+  out << YAML::EndMap;
+  if (c.skid_steer) {
+    out << YAML::Key << "skid_steer" << YAML::Value << YAML::BeginMap << YAML::Key
+        << "icr_y_left_m" << YAML::Value << num(c.skid_steer->icr_y_left_m) << YAML::Key
+        << "icr_y_right_m" << YAML::Value << num(c.skid_steer->icr_y_right_m) << YAML::EndMap;
+  }
   const auto& p = c.process;
   out << YAML::Key << "process" << YAML::Value << YAML::BeginMap << YAML::Key
       << "contact_angle_time_constant_s" << YAML::Value << num(p.contact_angle_time_constant_s)

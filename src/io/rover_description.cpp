@@ -202,6 +202,16 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       w.steered |= c >= 0 && geo.coords[static_cast<size_t>(c)].kind == rover::CoordKind::kSteering;
     }
   }
+  if (config.skid_steer) {
+    const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
+    for (int w = 0; w < geo.numWheels(); ++w) {
+      const double y = kin[w].T_body_wheel.p.y();
+      if (geo.wheels[w].steered) fail("skid_steer: wheel joint '" + geo.coords[geo.wheels[w].coord].joint + "' is steered");
+      if (std::abs(y) < 1e-6) fail("skid_steer: wheel joint '" + geo.coords[geo.wheels[w].coord].joint + "' is on the body's centre line (no side)");
+      geo.wheels[w].icr_offset_y =
+          (y > 0 ? config.skid_steer->icr_y_left_m : config.skid_steer->icr_y_right_m) - y;
+    }
+  }
   if (config.turn_centre_x_m) {
     geo.turn_centre_x = *config.turn_centre_x_m;
   } else {  // mean x of the wheels without a steering joint on their chain

@@ -1,5 +1,7 @@
 #include "traverse/rover/joint_sample.h"
 
+#include <cmath>
+
 namespace traverse::rover {
 
 Eigen::Matrix4d slipCovariance(const SlipNoise& sn, const JointSample& js, int i,
@@ -13,6 +15,10 @@ Eigen::Matrix4d slipCovariance(const SlipNoise& sn, const JointSample& js, int i
   // in the twist), and a steering-angle error turns the wheel's heading, moving the contact
   // point's velocity into the transverse row by |v_wheel| δλ.
   R.noalias() += J_vw * js.joint_twist_covariance[i] * J_vw.transpose();
+  const double wz2 = w_body.z() * w_body.z();
+  R(0, 0) += sn.longitudinal_per_yaw_rate_m * sn.longitudinal_per_yaw_rate_m * wz2;
+  R(1, 1) += sn.lateral_per_yaw_rate_m * sn.lateral_per_yaw_rate_m * wz2;
+  R(0, 0) += std::pow(sn.longitudinal_per_speed * v_body.x(), 2);
   if (js.steering_variance[i] > 0) {
     const Posed& g = js.T_body_wheel[i];
     const Twistd& jt = js.joint_twist[i];

@@ -148,7 +148,14 @@ ContactState ContactSolver::solve(double x, double y, double yaw,
     if (!u.allFinite() || (ns > 0 && u.tail(ns).cwiseAbs().maxCoeff() > options_.max_joint_angle_rad))
       break;
     // More wheels than unknowns: the least-squares optimum, once Gauss–Newton stops moving.
-    if (!square && step.norm() < 1e-12) return unpack(u, state);
+    if (!square && alpha * step.norm() < 1e-10) return unpack(u, state);
+  }
+  // Least squares: the optimum once Gauss–Newton has stalled, if no wheel floats or sinks by
+  // more than a centimetre (a rigid rover on rough ground rests on three of its wheels).
+  if (!square && u.allFinite()) {
+    const auto r = rims(bodyPose(x, y, yaw, unpack(u, state)), joints(u.tail(ns), steering));
+    for (int i = 0; i < nw; ++i) state.xi[i] = lowestRimPoint(r[i], state.xi[i]);
+    if (gaps(u, state.xi).cwiseAbs().maxCoeff() < 0.01) return unpack(u, state);
   }
   std::ostringstream os;
   os << "contact solver: no contact configuration at x = " << x << " m, y = " << y

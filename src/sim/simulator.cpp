@@ -179,7 +179,10 @@ void driveWheels(std::vector<TruthSample>& truth, const rover::RoverGeometry& ge
       const Vec4d t0 = rover::slipConstraint<double>(kin[i].T_body_wheel, r,
                                                      rover::wheelJointTwist(kin[i], rates),
                                                      s.v_body, s.w_body, s.xi[i]);
-      s.joint_rates[geo.wheels[i].coord] = (t0[0] - s.slip_longitudinal_mps[i]) / r;
+      // A skid-steered side rolls at the speed of its centre of rotation (io::SkidSteerConfig):
+      // the nominal longitudinal slip ω_z · icr_offset_y, as rover::nominalSlip models it.
+      const double nominal = s.w_body.z() * geo.wheels[i].icr_offset_y;
+      s.joint_rates[geo.wheels[i].coord] = (t0[0] - nominal - s.slip_longitudinal_mps[i]) / r;
     }
     if (k > 0) {  // trapezoidal integration of the drive angles
       const double h = s.t - truth[k - 1].t;

@@ -83,6 +83,15 @@ struct GpsConfig {
 };
 
 /// Smoother settings a log may carry (rover.yaml `smoother:`; command-line options override).
+/// Skid steering by the instantaneous centres of rotation (ICR) of the left and right wheel
+/// sets (Mandow et al. 2007): a side's wheels roll at r ψ̇ = v_x − ω_z y_ICR of that side, so a
+/// wheel at body y has the nominal longitudinal slip ω_z (y_ICR − y). The ICRs' x is
+/// turn_centre_x_m. Without this section y_ICR is each wheel's own y (no such slip).
+struct SkidSteerConfig {
+  double icr_y_left_m = 0.0;   ///< > 0 (body y, left)
+  double icr_y_right_m = 0.0;  ///< < 0
+};
+
 struct SmootherConfig {
   std::optional<std::string> loss;   ///< robust loss on sun and slip: huber, cauchy, none
   std::optional<double> loss_scale;  ///< in standard deviations
@@ -97,6 +106,7 @@ struct RoverConfig {
   /// URDF's document order (io/rover_description.h).
   std::vector<std::pair<std::string, std::string>> joint_names;
   std::optional<double> turn_centre_x_m;  ///< default: mean x of the unsteered wheels
+  std::optional<SkidSteerConfig> skid_steer;
   double gravity_mps2 = 9.80665;
   GyroConfig gyro;
   SunSensorConfig sun_sensor;

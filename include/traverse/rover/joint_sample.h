@@ -17,6 +17,13 @@ struct SlipNoise {
   double lateral_mps = 0.004;
   double normal_mps = 0.004;
   double spin_rad_s = 0.02;
+  /// Slip that grows with the turn (skid steering: wheels scrub sideways and the sides'
+  /// centres of rotation wander): σ² += (k |ω_z|)² on the longitudinal and lateral rows, k in m.
+  double longitudinal_per_yaw_rate_m = 0.0;
+  double lateral_per_yaw_rate_m = 0.0;
+  /// Longitudinal slip that grows with the speed (a fraction of |v_x|: wheel sinkage, a tyre's
+  /// effective radius that varies with the ground): σ² += (k |v_x|)².
+  double longitudinal_per_speed = 0.0;
 };
 
 /// Joint data at a joint sample: wheel frames g_{s f_i} and the wheels' joint twists J q̇ (K-17).

@@ -22,14 +22,16 @@ inline Twistd nominalBodyTwist(const RoverGeometry& geometry, double v_x, double
 
 /// Nominal slip of one wheel: the slip constraint on flat ground (ξ = 0) for the nominal body
 /// twist, keeping what rolling cannot absorb — the transverse slip (row 1) and the spin about
-/// the normal (row 3) — and zero longitudinal and normal slip (the wheel rolls and stays on
-/// the ground). `joint_twist` carries the steering rate's contribution to the spin.
+/// the normal (row 3) — and zero normal slip (the wheel stays on the ground). Longitudinally a
+/// wheel rolls (zero), except on a skid-steered rover, whose wheels roll at the speed of their
+/// side's centre of rotation: ω_z · icr_offset_y (Wheel::icr_offset_y). `joint_twist` carries
+/// the steering rate's contribution to the spin.
 inline Vec4d nominalSlip(const Posed& T_body_wheel, double radius, const Twistd& body_twist,
-                         const Twistd& joint_twist) {
+                         const Twistd& joint_twist, double icr_offset_y = 0.0) {
   const Vec3d v = body_twist.head<3>();
   const Vec3d w = body_twist.tail<3>();
   Vec4d t = slipConstraint<double>(T_body_wheel, radius, joint_twist, v, w, 0.0);
-  t[0] = 0.0;
+  t[0] = w.z() * icr_offset_y;
   t[2] = 0.0;
   return t;
 }

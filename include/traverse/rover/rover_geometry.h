@@ -59,6 +59,9 @@ struct Wheel {
   int coord = -1;        ///< index of its drive angle ψ_i in RoverGeometry::coords
   double radius = 0.0;   ///< m
   bool steered = false;  ///< a steering joint is on its chain
+  /// y_ICR − y of the wheel (m, body, at zero joint angles): its nominal longitudinal slip is
+  /// ω_z times it (skid steering, io::SkidSteerConfig; 0 for a wheel that just rolls).
+  double icr_offset_y = 0.0;
 };
 
 /// Geometry of a wheeled rover (any number of wheels; suspension and steering joints optional,
