@@ -8,6 +8,7 @@
 
 #include "traverse/core/error.h"
 #include "traverse/io/csv.h"
+#include "traverse/io/input_file.h"
 #include "traverse/io/rover_config.h"
 #include "traverse/io/rover_description.h"
 
@@ -76,6 +77,7 @@ TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport*
   log.config = loadRoverConfig(dir / "rover.yaml");
   const fs::path urdf = dir / log.config.urdf_file;
   requireFile(urdf);
+  checkInputSize(urdf);  // urdfdom reads the whole text: refuse a huge file before it does
   log.geometry = loadRoverGeometry(urdf, log.config);
   log.gyro = readCsv(dir / "gyro.csv", logStreamSpec("gyro.csv"), options, report);
   checkGyroAxes(dir / "gyro.csv", log.gyro, log.config);

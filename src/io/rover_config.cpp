@@ -12,6 +12,7 @@
 #include "traverse/core/error.h"
 #include "traverse/core/so3.h"
 #include "traverse/io/atomic_file.h"
+#include "traverse/io/input_file.h"
 #include "traverse/io/rover_config.h"
 
 namespace traverse::io {
@@ -157,7 +158,7 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   if (!std::filesystem::exists(yaml_file)) throw InputError(file, 0, "required file is missing");
   YAML::Node root;
   try {
-    root = YAML::LoadFile(file);
+    root = YAML::Load(readInputFile(yaml_file));
   } catch (const YAML::Exception& e) {
     throw InputError(file, e.mark.is_null() ? 0 : e.mark.line + 1, "unreadable YAML: " + e.msg);
   }
