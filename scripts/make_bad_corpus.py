@@ -176,6 +176,28 @@ case("bom-crlf-comments", "exit 0\nlines 0\nsame-outputs",
      **{n.replace(".", "_"): "\ufeff# exported by a test\r\n\r\n" +
         BASE[n].replace("\n", "\r\n").replace("\r\n", "\r\n# a comment\r\n", 3) for n in STREAMS})
 
+# --- usable but dirty: the run succeeds and warns --------------------------------------------
+case("gyro-gap", "exit 0\nlines 1\nstderr warning: gyro.csv: gap of 0.6 s at t=0.8",
+     gyro_csv="".join(l for i, l in enumerate(rows("gyro.csv"))
+                      if i == 0 or not 0.8 < float(l.split(",")[0]) < 1.4))
+case("stream-ends-early", "exit 0\nlines 1\nstderr warning: gyro.csv: ends at t=1.0, 1.0 s before joints.csv (t=2.0)",
+     gyro_csv="".join(l for i, l in enumerate(rows("gyro.csv"))
+                      if i == 0 or float(l.split(",")[0]) <= 1.0))
+case("sun-all-invalid", "exit 0\nlines 1\nstderr warning: sun.csv: no valid reading (all 11 rows have valid = 0)",
+     sun_csv="".join(l if i == 0 else l.rstrip("\n")[:-1] + "0\n"
+                     for i, l in enumerate(rows("sun.csv"))))
+case("sun-shifted", "exit 0\nlines 1\nstderr warning: sun.csv: does not overlap joints.csv in time: t 1000.0 .. 1002.0 s",
+     sun_csv="".join(l if i == 0 else repr(float(l.split(",")[0]) + 1000) + "," +
+                     l.split(",", 1)[1] for i, l in enumerate(rows("sun.csv"))))
+
+
+case("gyro-spike", "exit 0\nstderr warning: gyro.csv: spike in wz at t=1.0: 2.00",
+     gyro_csv=with_row("gyro.csv", 20, "1," + repr(2.0 + float(rows("gyro.csv")[21].split(",")[1]))))
+case("sun-out-of-view", "exit 0\nstderr warning: sun.csv: 3 valid readings outside the 160 deg field of "
+     "view from t=0.8 to t=1.2",
+     sun_csv="".join(l if not 0.7 < float(l.split(",")[0]) < 1.3 else l.split(",")[0] +
+                     ",0.7,-0.7,1\n" for l in rows("sun.csv")[1:]).join([rows("sun.csv")[0], ""]))
+
 def main():
     if os.path.isdir(OUT):
         for entry in os.listdir(OUT):
