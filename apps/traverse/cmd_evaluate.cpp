@@ -80,8 +80,16 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
       report = eval::evaluateAllAgainstFixes(logName(opt->log_dir), trajectories, truth);
     }
     // The log's diagnostics, as `run` writes them, when LOGDIR is a whole log (not only truth).
-    if (fs::exists(log_dir / "gyro.csv") && fs::exists(log_dir / "joints.csv"))
-      report.diagnostics = io::diagnose(io::readLog(log_dir));
+    // A log the reader refuses still has truth to evaluate against: say why there are no
+    // diagnostics, and go on.
+    if (fs::exists(log_dir / "gyro.csv") && fs::exists(log_dir / "joints.csv")) {
+      try {
+        report.diagnostics = io::diagnose(io::readLog(log_dir));
+      } catch (const InputError& e) {
+        std::cerr << "warning: " << opt->log_dir << ": no diagnostics in metrics.json: "
+                  << e.what() << "\n";
+      }
+    }
     const fs::path json = out_dir / "metrics.json";
     eval::writeMetricsJson(json, report);
     if (!global.quiet)

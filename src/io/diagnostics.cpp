@@ -246,7 +246,8 @@ void diagnoseSpikes(const Stream& s, const std::string& file, double noise_floor
       deviation.clear();
       for (const double x : window) deviation.push_back(std::abs(x - m));
       const double sigma = std::max(1.4826 * median(deviation), noise_floor);
-      if (!(std::abs(v[k] - m) > o.spike_k * sigma)) continue;
+      // σ = 0 (a quantised reading at rest, no declared noise): no scale to judge by.
+      if (!(sigma > 0.0) || !(std::abs(v[k] - m) > o.spike_k * sigma)) continue;
       Finding f = finding(file, "spike", s.t[k],
                           "spike in " + s.columns[c] + " at t=" + formatSeconds(s.t[k]) + ": " +
                               general(v[k]) + ", local median " + general(m) + ", robust sigma " +
