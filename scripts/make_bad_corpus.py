@@ -139,6 +139,16 @@ def truth_with_scaled_quaternion(row, factor):
 
 case("truth-quaternion-not-unit", E + "truth.csv:4: quaternion (qw,qx,qy,qz) has norm 1.1",
      truth_csv=truth_with_scaled_quaternion(2, 1.1))
+def gps_from_truth(bad_row):
+    out = ["t,x,y,z,sx,sy,sz\n"]
+    for i, l in enumerate(rows("truth.csv")[1:]):
+        f = l.split(",")
+        out.append(",".join(f[:4] + ["0.01", "0.01", "0" if i == bad_row else "0.02"]) + "\n")
+    return "".join(out)
+
+
+case("gps-sigma-zero", E + "gps.csv:4: value 0 in column 'sz' out of physical range",
+     gps_csv=gps_from_truth(2))
 case("yaml-unreadable", E + "rover.yaml:4: unreadable YAML",
      rover_yaml=BASE["rover.yaml"].replace("name: rocky7", "name: [rocky7", 1))
 case("yaml-unknown-key", E + "rover.yaml:21: key 'gyro.noise_rad': unknown key",
@@ -160,6 +170,11 @@ case("urdf-nonpositive-radius", E + "rover.urdf: wheel link of joint 'wheel_1' h
      rover_urdf=BASE["rover.urdf"].replace('radius="0.065"', 'radius="-0.065"', 1))
 case("binary-file", E + "joints.csv:3: binary content",
      joints_csv="".join(rows("joints.csv")[:2]).encode() + bytes(range(256)) * 4)
+case("yaml-binary", E + "rover.yaml:2: binary content (NUL byte at column 7): not a text file",
+     rover_yaml=BASE["rover.yaml"].replace("format: 1", "format\0: 1", 1).encode())
+case("yaml-empty", E + "rover.yaml: expected a YAML mapping at the top level", rover_yaml="")
+case("urdf-binary", E + "rover.urdf:1: binary content (NUL byte at column 1): not a text file",
+     rover_urdf=bytes(range(256)) * 4)
 case("file-too-large", E + "gyro.csv: file of 31367 bytes (31.4 kB) is larger than the input limit "
      "of 20000 bytes", env="TRAVERSE_MAX_INPUT_BYTES=20000",
      gyro_csv=BASE["gyro.csv"] + ("#" + "x" * 99 + "\n") * 300)

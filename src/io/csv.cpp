@@ -181,7 +181,7 @@ class Parser {
          const ReadOptions& options)
       : text_(text), file_(file), spec_(spec), options_(options) {
     if (text_.substr(0, 3) == "\xEF\xBB\xBF") text_.remove_prefix(3);  // UTF-8 byte-order mark
-    rejectBinary();
+    rejectBinary(text_, file_);  // no row of a binary file is trusted, even with skip_bad_rows
   }
 
   Stream run(ReadReport* report) {
@@ -208,19 +208,6 @@ class Parser {
   }
 
  private:
-  /// A NUL byte never occurs in a text file: the file is binary (or corrupt), whatever its name
-  /// says, and no row of it is trusted (even with skip_bad_rows).
-  void rejectBinary() const {
-    const auto* nul = static_cast<const char*>(std::memchr(text_.data(), '\0', text_.size()));
-    if (nul == nullptr) return;
-    const std::string_view before(text_.data(), static_cast<std::size_t>(nul - text_.data()));
-    const long line = static_cast<long>(std::count(before.begin(), before.end(), '\n')) + 1;
-    const std::size_t column = before.size() - (before.rfind('\n') + 1) + 1;
-    throw InputError(
-        file_, line,
-        "binary content (NUL byte at column " + std::to_string(column) + "): not a CSV text file");
-  }
-
   /// Next line that is neither empty (or blank) nor a comment; false at the end of the text.
   bool nextLine(std::string_view* line, bool* newline) {
     while (pos_ < text_.size()) {

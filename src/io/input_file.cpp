@@ -48,6 +48,17 @@ void checkInputSize(const std::filesystem::path& file) {
                        " bytes; not read (TRAVERSE_MAX_INPUT_BYTES sets the limit)");
 }
 
+void rejectBinary(std::string_view text, const std::string& file) {
+  const auto* nul = static_cast<const char*>(std::memchr(text.data(), '\0', text.size()));
+  if (nul == nullptr) return;
+  const std::string_view before(text.data(), static_cast<std::size_t>(nul - text.data()));
+  const long line = static_cast<long>(std::count(before.begin(), before.end(), '\n')) + 1;
+  const std::size_t column = before.size() - (before.rfind('\n') + 1) + 1;
+  throw InputError(
+      file, line,
+      "binary content (NUL byte at column " + std::to_string(column) + "): not a text file");
+}
+
 std::string readInputFile(const std::filesystem::path& file) {
   const std::string name = file.string();
   std::error_code ec;

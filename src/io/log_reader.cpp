@@ -78,8 +78,10 @@ TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport*
   log.config = loadRoverConfig(dir / "rover.yaml");
   const fs::path urdf = dir / log.config.urdf_file;
   requireFile(urdf);
-  checkInputSize(urdf);  // urdfdom reads the whole text: refuse a huge file before it does
-  log.geometry = loadRoverGeometry(urdf, log.config);
+  // Read here (not by loadRoverGeometry) for the size limit and the binary check.
+  const std::string urdf_text = readInputFile(urdf);
+  rejectBinary(urdf_text, urdf.string());
+  log.geometry = parseRoverGeometry(urdf_text, log.config, urdf.string());
   log.gyro = readCsv(dir / "gyro.csv", logStreamSpec("gyro.csv"), options, report);
   checkGyroAxes(dir / "gyro.csv", log.gyro, log.config);
   log.joints = readCsv(dir / "joints.csv", logStreamSpec("joints.csv"), options, report);

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 
 namespace traverse::io {
 
@@ -17,6 +18,10 @@ std::uintmax_t maxInputBytes();
 /// Throws InputError(file, 0, …) naming the file's size and the limit when it is larger than
 /// maxInputBytes(); looks only at the directory entry (a sparse file is never read).
 void checkInputSize(const std::filesystem::path& file);
+
+/// Throws InputError(file, line, "binary content …") when the text holds a NUL byte, which no
+/// text file does (a binary or corrupt file, whatever its name says).
+void rejectBinary(std::string_view text, const std::string& file);
 
 /// The file's bytes, after checkInputSize. InputError when missing, a directory or unreadable.
 std::string readInputFile(const std::filesystem::path& file);
