@@ -204,6 +204,16 @@ TEST(IoDiagnostics, GyroAndAccelerometerSpikes) {
   EXPECT_EQ(d.findings.size(), 2U);
 }
 
+TEST(IoDiagnostics, JointAngleSpikeButNotTheDriveRamp) {
+  TraverseLog log = cleanLog();  // every ψ ramps at 1 rad/s from 10 to 50 s: no spike
+  log.joints.values(200, log.joints.col("gamma1")) += 0.2;  // a potentiometer glitch at 20 s
+  const Diagnostics d = diagnose(log);
+  ASSERT_EQ(d.findings.size(), 1U) << lines(d);
+  EXPECT_EQ(d.findings[0].kind, "spike");
+  EXPECT_EQ(d.findings[0].column, "gamma1");
+  EXPECT_DOUBLE_EQ(d.findings[0].t, 20.0);
+}
+
 TEST(IoDiagnostics, ATurnIsNoSpike) {
   TraverseLog log = cleanLog();
   for (Eigen::Index k = 0; k < log.gyro.size(); ++k)

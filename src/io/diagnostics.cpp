@@ -186,6 +186,21 @@ void diagnoseSun(const Stream& sun, const RoverConfig& config, std::vector<Findi
   }
 }
 
+/// Each joints column's declared noise (rover.yaml joint_sensors): suspension γ, steering λ,
+/// and the drive encoders for ψ and any other name (a rover's own wheel joints).
+std::vector<double> jointNoise(const Stream& joints, const RoverConfig& config) {
+  std::vector<double> noise;
+  for (const std::string& c : joints.columns) {
+    if (c.rfind("gamma", 0) == 0)
+      noise.push_back(config.joints.angle_noise_rad);
+    else if (c.rfind("lambda", 0) == 0)
+      noise.push_back(config.joints.steeringNoise());
+    else
+      noise.push_back(config.joints.wheel_noise_rad);
+  }
+  return noise;
+}
+
 }  // namespace
 
 std::string formatSeconds(double s) {
@@ -227,12 +242,14 @@ void diagnoseTiming(const Stream& s, const std::string& file, const DiagnosticsO
   diagnoseRate(s, file, o, out);
 }
 
-void diagnoseSpikes(const Stream& s, const std::string& file, double noise_floor,
-                    const DiagnosticsOptions& o, std::vector<Finding>* out) {
+void diagnoseSpikes(const Stream& s, const std::string& file,
+                    const std::vector<double>& noise_floors, const DiagnosticsOptions& o,
+                    std::vector<Finding>* out) {
   const Eigen::Index h = o.spike_half_window;
-  if (h < 1 || s.size() < 2 * h + 1) return;
+  if (h < 1 || s.size() < 2 * h + 1 || noise_floors.empty()) return;
   std::vector<double> window, deviation;
   for (std::size_t c = 0; c < s.columns.size(); ++c) {
+    const double noise_floor = noise_floors[std::min(c, noise_floors.size() - 1)];
     const auto v = s.values.col(static_cast<Eigen::Index>(c));
     for (Eigen::Index k = 0; k < s.size(); ++k) {
       // The window is the 2h neighbours, shifted inwards at the ends, never the sample itself.
@@ -280,9 +297,10 @@ Diagnostics diagnose(const TraverseLog& log, const DiagnosticsOptions& o) {
                     is_joints ? "gyro.csv" : "joints.csv", o, &out);
     if (stream == &log.gyro || is_joints || (log.accel && stream == &*log.accel))
       diagnoseStuck(log, *stream, file, is_joints, o, &out);
-    if (stream == &log.gyro) diagnoseSpikes(*stream, file, log.config.gyro.noise_rad_s, o, &out);
+    if (stream == &log.gyro) diagnoseSpikes(*stream, file, {log.config.gyro.noise_rad_s}, o, &out);
+    if (is_joints) diagnoseSpikes(*stream, file, jointNoise(*stream, log.config), o, &out);
     if (log.accel && stream == &*log.accel)
-      diagnoseSpikes(*stream, file, log.config.accel.noise_mps2, o, &out);
+      diagnoseSpikes(*stream, file, {log.config.accel.noise_mps2}, o, &out);
     if (log.sun && stream == &*log.sun) diagnoseSun(*stream, log.config, &out);
     std::stable_sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(),
                      [](const Finding& a, const Finding& b) { return a.t < b.t; });

@@ -19,9 +19,10 @@
 //   stuck          a gyro, accelerometer or wheel-drive channel repeats one reading exactly for
 //                  at least stuck_min_s and stuck_min_samples while another wheel turns by
 //                  more than motion_wheel_rad through the middle half of that stretch
-//   spike          a gyro or accelerometer sample farther than spike_k robust σ from the median
-//                  of the spike_half_window samples either side (σ = 1.4826 MAD, never below
-//                  the noise rover.yaml declares)
+//   spike          a gyro, accelerometer or joint-angle sample farther than spike_k robust σ
+//                  from the median of the spike_half_window samples either side (σ = 1.4826
+//                  MAD, never below the noise rover.yaml declares for that sensor); a spike in
+//                  an angle is the spike pair the joint rates would carry
 //   sun_invalid    every sun reading has valid = 0
 //   sun_out_of_view
 //                  valid readings whose fish-eye radius puts the sun outside the field of view
@@ -89,11 +90,13 @@ double medianInterval(const Stream& s);
 Diagnostics diagnose(const TraverseLog& log, const DiagnosticsOptions& options = {});
 
 /// Single-stream checks, for a stream of any origin: gaps, time order, rate changes, and the
-/// spikes of the given channels (noise_floor: the least robust σ, the declared sensor noise).
+/// spikes of every channel (noise_floors: per column, or one for all — the least robust σ, the
+/// declared sensor noise).
 void diagnoseTiming(const Stream& s, const std::string& file, const DiagnosticsOptions& options,
                     std::vector<Finding>* out);
-void diagnoseSpikes(const Stream& s, const std::string& file, double noise_floor,
-                    const DiagnosticsOptions& options, std::vector<Finding>* out);
+void diagnoseSpikes(const Stream& s, const std::string& file,
+                    const std::vector<double>& noise_floors, const DiagnosticsOptions& options,
+                    std::vector<Finding>* out);
 
 /// "15.0", "0.85", "1000.05": at most three decimals, at least one.
 std::string formatSeconds(double s);
