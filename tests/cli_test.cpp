@@ -16,6 +16,7 @@ namespace traverse {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using ::testing::StartsWith;
 
 struct Result {
@@ -131,6 +132,33 @@ TEST(Cli, RunWarnsOfARestThatIsNotOne) {
   EXPECT_THAT(r.err, HasSubstr("warning: "));
   EXPECT_THAT(r.err, HasSubstr("is not at rest"));
   EXPECT_THAT(r.err, HasSubstr("treated as motion"));
+  std::filesystem::remove_all(dir);
+}
+
+// A log without truth still gets metrics.json: the diagnostics, nothing to evaluate. A gap the
+// run warns of is the one the file lists.
+TEST(Cli, FilterWithoutTruthWritesTheDiagnostics) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_no_truth";
+  std::filesystem::remove_all(dir);
+  std::filesystem::copy(bundled("straight-1m"), dir);
+  std::filesystem::remove(dir / "truth.csv");
+  std::ifstream in(dir / "gyro.csv");
+  std::string line, text;
+  while (std::getline(in, line)) {
+    const double t = line[0] == 't' ? -1.0 : std::stod(line.substr(0, line.find(',')));
+    if (!(t > 10.0 && t < 25.0)) text += line + "\n";
+  }
+  in.close();
+  std::ofstream(dir / "gyro.csv") << text;
+  const Result r = run("filter --quiet " + dir.string() + " -o " + (dir / "out").string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "warning: gyro.csv: gap of 15.0 s at t=10.0\n");
+  std::ifstream f(dir / "out" / "metrics.json");
+  const std::string json(std::istreambuf_iterator<char>(f), {});
+  EXPECT_THAT(json, HasSubstr("\"log\": \"traverse_cli_no_truth\""));
+  EXPECT_THAT(json, Not(HasSubstr("\"estimators\"")));
+  EXPECT_THAT(json, HasSubstr("\"counts\": {\"gap\": 1,"));
+  EXPECT_THAT(json, HasSubstr("\"kind\": \"gap\", \"t\": 10, \"duration_s\": 15"));
   std::filesystem::remove_all(dir);
 }
 

@@ -1,6 +1,7 @@
 // `traverse evaluate OUTDIR --truth LOGDIR`: metrics of whatever trajectories OUTDIR holds
 // (dr.csv, ekf.csv, smoothed.csv) against LOGDIR/truth.csv, or, without it, against the
-// position-only LOGDIR/gps.csv (lever arm from LOGDIR/rover.yaml); writes OUTDIR/metrics.json.
+// position-only LOGDIR/gps.csv (lever arm from LOGDIR/rover.yaml); writes OUTDIR/metrics.json
+// (with the log's diagnostics when LOGDIR is a whole log).
 #include <iostream>
 #include <memory>
 
@@ -9,6 +10,8 @@
 #include "traverse/eval/metrics.h"
 #include "traverse/eval/position_truth.h"
 #include "traverse/io/csv.h"
+#include "traverse/io/diagnostics.h"
+#include "traverse/io/log_reader.h"
 #include "traverse/io/rover_config.h"
 
 namespace traverse::app {
@@ -75,6 +78,17 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
       const eval::PositionTruth truth(io::readCsv(gps_file, io::logStreamSpec("gps.csv")),
                                       config.gps.antenna_body_m);
       report = eval::evaluateAllAgainstFixes(logName(opt->log_dir), trajectories, truth);
+    }
+    // The log's diagnostics, as `run` writes them, when LOGDIR is a whole log (not only truth).
+    // A log the reader refuses still has truth to evaluate against: say why there are no
+    // diagnostics, and go on.
+    if (fs::exists(log_dir / "gyro.csv") && fs::exists(log_dir / "joints.csv")) {
+      try {
+        report.diagnostics = io::diagnose(io::readLog(log_dir));
+      } catch (const InputError& e) {
+        std::cerr << "warning: " << opt->log_dir << ": no diagnostics in metrics.json: "
+                  << e.what() << "\n";
+      }
     }
     const fs::path json = out_dir / "metrics.json";
     eval::writeMetricsJson(json, report);

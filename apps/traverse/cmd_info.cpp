@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "commands.h"
+#include "traverse/io/diagnostics.h"
 #include "traverse/io/log_reader.h"
 
 namespace traverse::app {
@@ -28,6 +29,7 @@ Command addInfoCommand(CLI::App& app, const GlobalOptions& global) {
       if (n > 0)
         std::cerr << file << ": skipped " << n << " bad row" << (n == 1 ? "" : "s") << "\n";
     }
+    for (const std::string& line : io::diagnose(log).warningLines()) std::cerr << line << "\n";
     return 0;
   };
 }

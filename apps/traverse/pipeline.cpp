@@ -4,6 +4,7 @@
 
 #include "traverse/eval/metrics.h"
 #include "traverse/eval/position_truth.h"
+#include "traverse/io/diagnostics.h"
 #include "traverse/io/log_reader.h"
 
 namespace traverse::app {
@@ -119,12 +120,15 @@ namespace {
 /// gps.csv (docs/evaluation.md). Nothing without either.
 void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation& seg,
                              const std::vector<est::Trajectory>& trajectories,
-                             const PipelineOptions& o, const GlobalOptions& global) {
-  if (!log.truth && !log.gps) return;
+                             const io::Diagnostics& diagnostics, const PipelineOptions& o,
+                             const GlobalOptions& global) {
   const auto dir_name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
   const std::string name = dir_name.empty() ? o.log_dir : dir_name;
   eval::MetricsReport report;
-  if (log.truth) {
+  if (!log.truth && !log.gps) {  // nothing to evaluate; the diagnostics are written all the same
+    report.log = name;
+    report.evaluated = false;
+  } else if (log.truth) {
     const eval::TruthTrajectory truth(*log.truth);
     report = eval::evaluateAll(name, trajectories, truth);
     setRestBiasMetric(report, seg, truth);
@@ -132,8 +136,9 @@ void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation
     report = eval::evaluateAllAgainstFixes(
         name, trajectories, eval::PositionTruth(*log.gps, log.config.gps.antenna_body_m));
   }
+  report.diagnostics = diagnostics;
   eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
-  if (!global.quiet) std::cout << eval::formatMetricsTable(report);
+  if (!global.quiet && report.evaluated) std::cout << eval::formatMetricsTable(report);
 }
 
 }  // namespace
@@ -144,6 +149,8 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   const io::TraverseLog log = io::readLog(o.log_dir, io::ReadOptions{o.skip_bad_rows}, &report);
   for (const auto& [file, n] : report.skipped_rows)
     std::cerr << file << ": skipped " << n << " bad rows\n";
+  const io::Diagnostics diagnostics = io::diagnose(log);
+  for (const std::string& line : diagnostics.warningLines()) std::cerr << line << "\n";
   pipeline::PipelineConfig config = pipelineConfig(o);
   config.smooth = smooth;
   pipeline::Estimates e = pipeline::estimate(log, config);
@@ -161,7 +168,7 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     trajectories.push_back(e.smoothed->trajectory);
   }
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
-  evaluateAgainstLogTruth(log, e.segmentation, trajectories, o, global);
+  evaluateAgainstLogTruth(log, e.segmentation, trajectories, diagnostics, o, global);
   if (!global.quiet) {
     const est::EkfStats& s = e.ekf.stats;
     std::cout << "segments: " << e.segmentation.segments.size() << " ("
@@ -190,8 +197,7 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
       }
     }
     std::cout << "wrote " << o.out_dir << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
-              << ".{csv,tum}, segments.csv" << (log.truth || log.gps ? ", metrics.json" : "")
-              << "\n";
+              << ".{csv,tum}, segments.csv, metrics.json\n";
   }
   return e;
 }

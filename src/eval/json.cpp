@@ -55,15 +55,47 @@ std::string jsonString(std::string_view text) {
 }
 
 JsonWriter& JsonWriter::beginObject(bool compact) {
+  element();
   // A nested object inherits compactness: everything inside a one-line object stays on it.
   compact = compact || (!stack_.empty() && stack_.back().compact);
   out_ += "{";
-  stack_.push_back(Level{compact, true});
+  stack_.push_back(Level{compact, true, false});
   return *this;
 }
 
+JsonWriter& JsonWriter::beginArray() {
+  if (stack_.empty()) throw std::logic_error("JsonWriter: array outside an object");
+  element();
+  out_ += "[";
+  stack_.push_back(Level{stack_.back().compact, true, true});
+  return *this;
+}
+
+JsonWriter& JsonWriter::endArray() {
+  if (stack_.empty() || !stack_.back().array)
+    throw std::logic_error("JsonWriter: endArray without beginArray");
+  const Level level = stack_.back();
+  stack_.pop_back();
+  if (!level.compact && !level.empty) newline();
+  out_ += "]";
+  return *this;
+}
+
+void JsonWriter::element() {
+  if (stack_.empty() || !stack_.back().array) return;
+  Level& level = stack_.back();
+  if (!level.empty) out_ += ",";
+  if (level.compact) {
+    if (!level.empty) out_ += " ";
+  } else {
+    newline();
+  }
+  level.empty = false;
+}
+
 JsonWriter& JsonWriter::endObject() {
-  if (stack_.empty()) throw std::logic_error("JsonWriter: endObject without beginObject");
+  if (stack_.empty() || stack_.back().array)
+    throw std::logic_error("JsonWriter: endObject without beginObject");
   const Level level = stack_.back();
   stack_.pop_back();
   if (!level.compact && !level.empty) newline();
@@ -73,7 +105,8 @@ JsonWriter& JsonWriter::endObject() {
 }
 
 JsonWriter& JsonWriter::key(std::string_view name) {
-  if (stack_.empty()) throw std::logic_error("JsonWriter: key outside an object");
+  if (stack_.empty() || stack_.back().array)
+    throw std::logic_error("JsonWriter: key outside an object");
   Level& level = stack_.back();
   if (!level.empty) out_ += ",";
   if (level.compact) {
@@ -94,6 +127,7 @@ void JsonWriter::newline() {
 
 void JsonWriter::raw(std::string_view token) {
   if (stack_.empty()) throw std::logic_error("JsonWriter: value outside an object");
+  element();
   out_ += token;
 }
 

@@ -29,18 +29,56 @@ MetricsReport evaluateAll(std::string log_name, const std::vector<est::Trajector
   return report;
 }
 
+namespace {
+
+void writeDiagnostics(JsonWriter& json, const io::Diagnostics& d) {
+  json.key("diagnostics").beginObject();
+  json.key("counts").beginObject(/*compact=*/true);
+  const auto counts = d.countsByKind();
+  for (const std::string& kind : io::kFindingKinds) json.key(kind).integer(counts.at(kind));
+  json.endObject();
+  json.key("by_file").beginObject();
+  for (const auto& [file, kinds] : d.countsByFile()) {
+    json.key(file).beginObject(/*compact=*/true);
+    for (const auto& [kind, n] : kinds) json.key(kind).integer(n);
+    json.endObject();
+  }
+  json.endObject();
+  json.key("findings").beginArray();
+  for (const io::Finding& f : d.findings) {
+    json.beginObject(/*compact=*/true);
+    json.key("file").string(f.file);
+    json.key("kind").string(f.kind);
+    json.key("t").number(f.t);
+    json.key("duration_s").number(f.duration_s);
+    if (!f.column.empty()) {
+      json.key("column").string(f.column);
+      json.key("value").number(f.value);
+    }
+    json.key("message").string(f.message);
+    json.endObject();
+  }
+  json.endArray();
+  json.endObject();
+}
+
+}  // namespace
+
 std::string formatMetricsJson(const MetricsReport& report) {
   JsonWriter json;
   json.beginObject();
   json.key("log").string(report.log);
-  json.key("path_length_m").number(report.path_length_m);
-  json.key("estimators").beginObject();
-  for (const EstimatorMetrics& e : report.estimators) {
-    json.key(e.estimator).beginObject();
-    for (const auto& [key, value] : e.metrics.entries) json.key(key).number(value);
+  if (report.evaluated) {
+    json.key("path_length_m").number(report.path_length_m);
+    json.key("estimators").beginObject();
+    for (const EstimatorMetrics& e : report.estimators) {
+      json.key(e.estimator).beginObject();
+      for (const auto& [key, value] : e.metrics.entries) json.key(key).number(value);
+      json.endObject();
+    }
     json.endObject();
   }
-  json.endObject();
+  if (report.diagnostics) writeDiagnostics(json, *report.diagnostics);
   json.endObject();
   return json.text();
 }

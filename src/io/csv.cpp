@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "traverse/core/error.h"
+#include "traverse/io/input_file.h"
 #include "traverse/rover/rover_geometry.h"
 
 namespace traverse::io {
@@ -36,9 +37,22 @@ std::string number(double v) {
 }
 
 /// A field quoted for a message (long garbage shortened).
+/// A field quoted for a message (long garbage shortened; control and non-ASCII bytes as \xNN,
+/// so the message stays one printable line).
 std::string quoted(std::string_view s) {
   constexpr std::size_t kMax = 40;
-  return "'" + std::string(s.substr(0, kMax)) + (s.size() > kMax ? "…'" : "'");
+  std::string out = "'";
+  for (const char c : s.substr(0, kMax)) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x20 && u < 0x7F) {
+      out += c;
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02X", u);
+      out += hex;
+    }
+  }
+  return out + (s.size() > kMax ? "…'" : "'");
 }
 
 // --- the contract's streams (docs/log-format.md) ---------------------------------------------
@@ -68,6 +82,7 @@ std::map<std::string, StreamSpec, std::less<>> makeLogSpecs() {
   for (int n = 1; n <= rover::kMaxWheels; ++n) {
     specs["truth.csv"].layouts.push_back(truthLayout(n));
   }
+  specs["truth.csv"].unit_norm_groups = {{"qw", "qx", "qy", "qz"}};  // q rotates body → site
   return specs;
 }
 
@@ -174,6 +189,7 @@ class Parser {
          const ReadOptions& options)
       : text_(text), file_(file), spec_(spec), options_(options) {
     if (text_.substr(0, 3) == "\xEF\xBB\xBF") text_.remove_prefix(3);  // UTF-8 byte-order mark
+    rejectBinary(text_, file_);  // no row of a binary file is trusted, even with skip_bad_rows
   }
 
   Stream run(ReadReport* report) {
@@ -233,6 +249,14 @@ class Parser {
       const auto it = std::find(columns_.begin(), columns_.end(), r.column);
       if (it != columns_.end()) ranges_.push_back({it - columns_.begin() + 1, r});
     }
+    for (const Names& group : spec_.unit_norm_groups) {
+      std::vector<std::ptrdiff_t> idx;
+      for (const std::string& c : group) {
+        const auto it = std::find(columns_.begin(), columns_.end(), c);
+        if (it != columns_.end()) idx.push_back(it - columns_.begin() + 1);
+      }
+      if (idx.size() == group.size()) unit_groups_.push_back({std::move(idx), join(group)});
+    }
   }
 
   const std::string& columnName(std::size_t k) const {
@@ -286,6 +310,19 @@ class Parser {
       if (v < r.min || v > r.max) {
         return bad("value " + number(v) + " in column '" + r.column + "' out of physical range [" +
                        number(r.min) + ", " + number(r.max) + "]",
+                   newline);
+      }
+    }
+    for (const auto& [idx, name] : unit_groups_) {
+      double norm2 = 0.0;
+      for (const std::ptrdiff_t k : idx) {
+        const double v = row_[static_cast<std::size_t>(k)];
+        norm2 += v * v;
+      }
+      const double norm = std::sqrt(norm2);
+      if (std::abs(norm - 1.0) > kUnitNormTolerance) {
+        return bad("quaternion (" + name + ") has norm " + number(norm) + ", not 1 (tolerance " +
+                       number(kUnitNormTolerance) + ")",
                    newline);
       }
     }
@@ -358,6 +395,7 @@ class Parser {
   double prev_t_ = 0.0;
   Names columns_;
   std::vector<std::pair<std::ptrdiff_t, ColumnRange>> ranges_;  ///< (row_ index, range)
+  std::vector<std::pair<std::vector<std::ptrdiff_t>, std::string>> unit_groups_;  ///< row_ indices
   std::vector<double> row_;  ///< the row being parsed: t, then the values
   Eigen::VectorXd t_;        ///< filled in place: no copy at the end
   Eigen::MatrixXd values_;
@@ -388,21 +426,7 @@ Stream parseCsv(std::string_view text, const std::string& file, const StreamSpec
 
 Stream readCsv(const std::filesystem::path& file, const StreamSpec& spec,
                const ReadOptions& options, ReadReport* report) {
-  const std::string name = file.string();
-  std::error_code ec;
-  if (!std::filesystem::exists(file, ec)) throw InputError(name, 0, "file not found");
-  if (std::filesystem::is_directory(file, ec))
-    throw InputError(name, 0, "is a directory, not a file");
-  std::ifstream in(file, std::ios::binary);
-  std::string text;
-  if (in) {
-    in.seekg(0, std::ios::end);
-    text.resize(static_cast<std::size_t>(std::max<std::streamoff>(in.tellg(), 0)));
-    in.seekg(0, std::ios::beg);
-    in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  }
-  if (!in) throw InputError(name, 0, std::string("cannot read file: ") + std::strerror(errno));
-  return parseCsv(text, name, spec, options, report);
+  return parseCsv(readInputFile(file), file.string(), spec, options, report);
 }
 
 // --- writing ---------------------------------------------------------------------------------

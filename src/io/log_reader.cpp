@@ -8,6 +8,8 @@
 
 #include "traverse/core/error.h"
 #include "traverse/io/csv.h"
+#include "traverse/io/diagnostics.h"
+#include "traverse/io/input_file.h"
 #include "traverse/io/rover_config.h"
 #include "traverse/io/rover_description.h"
 
@@ -77,7 +79,10 @@ TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport*
   log.config = loadRoverConfig(dir / "rover.yaml");
   const fs::path urdf = dir / log.config.urdf_file;
   requireFile(urdf);
-  log.geometry = loadRoverGeometry(urdf, log.config);
+  // Read here (not by loadRoverGeometry) for the size limit and the binary check.
+  const std::string urdf_text = readInputFile(urdf);
+  rejectBinary(urdf_text, urdf.string());
+  log.geometry = parseRoverGeometry(urdf_text, log.config, urdf.string());
   log.gyro = readCsv(dir / "gyro.csv", logStreamSpec("gyro.csv"), options, report);
   checkGyroAxes(dir / "gyro.csv", log.gyro, log.config);
   log.joints =
@@ -102,18 +107,11 @@ StreamSummary summarizeStream(const std::string& name, const Stream& stream) {
   s.t_first = stream.t[0];
   s.t_last = stream.t[stream.size() - 1];
   if (stream.size() < 2) return s;
-  const Eigen::Index n = stream.size() - 1;
-  const Eigen::VectorXd dt = stream.t.tail(n) - stream.t.head(n);
-  std::vector<double> sorted(dt.data(), dt.data() + n);
-  const auto mid = sorted.begin() + n / 2;
-  std::nth_element(sorted.begin(), mid, sorted.end());
-  double median = *mid;
-  if (n % 2 == 0) median = 0.5 * (median + *std::max_element(sorted.begin(), mid));
-  s.median_rate_hz = 1.0 / median;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    if (dt[i] <= 3.0 * median) continue;
+  s.median_rate_hz = 1.0 / medianInterval(stream);
+  // The same gaps as the diagnostics' (io/diagnostics.h): > 3 median intervals.
+  for (const Gap& g : findGaps(stream, 3.0)) {
     ++s.gaps;
-    s.largest_gap_s = std::max(s.largest_gap_s, dt[i]);
+    s.largest_gap_s = std::max(s.largest_gap_s, g.length_s);
   }
   return s;
 }

@@ -12,6 +12,7 @@
 #include "traverse/core/error.h"
 #include "traverse/core/so3.h"
 #include "traverse/io/atomic_file.h"
+#include "traverse/io/input_file.h"
 #include "traverse/io/rover_config.h"
 
 namespace traverse::io {
@@ -174,7 +175,9 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   if (!std::filesystem::exists(yaml_file)) throw InputError(file, 0, "required file is missing");
   YAML::Node root;
   try {
-    root = YAML::LoadFile(file);
+    const std::string text = readInputFile(yaml_file);
+    rejectBinary(text, file);
+    root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw InputError(file, e.mark.is_null() ? 0 : e.mark.line + 1, "unreadable YAML: " + e.msg);
   }

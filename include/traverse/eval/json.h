@@ -1,6 +1,6 @@
 // A tiny JSON writer for the evaluation outputs (metrics.json, `bench accuracy --json`;
-// ../shared/docs/outputs.md). Objects only (no arrays are needed), two-space indentation, keys
-// in the order they are written.
+// ../shared/docs/outputs.md). Objects and arrays (an array's elements one per line, or on the
+// array's line inside a compact object), two-space indentation, keys in the order written.
 //
 // Numbers use std::to_chars' shortest round-trip form, so a reader gets back the exact double;
 // a non-finite number is written as `null` (JSON has no NaN or infinity, and a metric that
@@ -25,6 +25,9 @@ class JsonWriter {
   /// is written on one line: {"mean": 1, "std": 2}.
   JsonWriter& beginObject(bool compact = false);
   JsonWriter& endObject();
+  /// Opens an array as the value of the preceding key (or an element of an enclosing array).
+  JsonWriter& beginArray();
+  JsonWriter& endArray();
   JsonWriter& key(std::string_view name);
   JsonWriter& number(double value);
   JsonWriter& integer(long long value);
@@ -37,8 +40,10 @@ class JsonWriter {
   struct Level {
     bool compact = false;
     bool empty = true;
+    bool array = false;
   };
   void raw(std::string_view token);
+  void element();  ///< inside an array: the separator before the next element
   void newline();  ///< line break and the indentation of the current depth
   std::vector<Level> stack_;
   std::string out_;

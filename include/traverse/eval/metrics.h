@@ -51,6 +51,7 @@
 #include "traverse/estimators/segmentation.h"
 #include "traverse/estimators/trajectory.h"
 #include "traverse/eval/truth.h"
+#include "traverse/io/diagnostics.h"
 
 namespace traverse::eval {
 
@@ -107,13 +108,19 @@ struct MetricsReport {
   std::string log;             ///< the log directory's name
   double path_length_m = 0.0;  ///< truth path length over the span of all trajectories
   std::vector<EstimatorMetrics> estimators;
+  /// What the stream diagnostics found in the log (io/diagnostics.h), when they ran.
+  std::optional<io::Diagnostics> diagnostics = std::nullopt;
+  bool evaluated = true;  ///< false: the log has no truth (no path length, no estimators)
 };
 
 /// Evaluates every trajectory (in the given order) against one truth.
 MetricsReport evaluateAll(std::string log_name, const std::vector<est::Trajectory>& trajectories,
                           const TruthTrajectory& truth, const EvaluateOptions& options = {});
 
-/// {"log": …, "path_length_m": …, "estimators": {"dr": {…}, …}} (outputs.md), newline-ended.
+/// {"log": …, "path_length_m": …, "estimators": {"dr": {…}, …}, "diagnostics": {…}}
+/// (outputs.md), newline-ended; without truth only "log" and "diagnostics". The diagnostics
+/// block: "counts" (every kind), "by_file" (file → kind → count), "findings" (one compact
+/// object each: file, kind, t, duration_s, column and value when set, message).
 std::string formatMetricsJson(const MetricsReport& report);
 /// Writes formatMetricsJson atomically (tmp file + rename).
 void writeMetricsJson(const std::filesystem::path& file, const MetricsReport& report);

@@ -8,7 +8,9 @@
 // ReadOptions::skip_bad_rows, row-level problems (non-numeric field, NaN/inf, wrong field count
 // or truncated last line, non-increasing or duplicate time, value out of physical range) drop
 // the row and count it in ReadReport::skipped_rows[file name]; problems with the file or its
-// header (missing, empty, header only, missing/unknown/misordered column) always throw.
+// header (missing, empty, header only, missing/unknown/misordered column) always throw, and so
+// do a file larger than maxInputBytes() (refused before it is read, input_file.h) and binary
+// content (a NUL byte anywhere). A UTF-8 byte-order mark and CRLF line ends are accepted.
 //
 // Writing: numbers are formatted with std::to_chars' shortest round-trip representation, so
 // writeCsv → readCsv reproduces every double bit for bit (including −0, subnormals and extreme
@@ -47,7 +49,14 @@ struct HeaderLayout {
 struct StreamSpec {
   std::vector<HeaderLayout> layouts;  ///< alternatives, e.g. `t,wz` or `t,wx,wy,wz`
   std::vector<ColumnRange> ranges;
+  /// Columns that together must have Euclidean norm 1 within kUnitNormTolerance (a quaternion),
+  /// when all of them are present; a row that does not is a bad row.
+  std::vector<std::vector<std::string>> unit_norm_groups = {};
 };
+
+/// |‖q‖ − 1| allowed for a unit group: far above rounding in a double (1e-16) or a float
+/// normalised and printed with 7 digits (1e-7), far below any real error.
+inline constexpr double kUnitNormTolerance = 1e-6;
 
 /// The contract's spec of a log stream by file name: "gyro.csv", "joints.csv", "sun.csv",
 /// "accel.csv", "cmd.csv", "truth.csv" or "gps.csv". Throws std::out_of_range for any other name.
