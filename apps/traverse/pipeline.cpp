@@ -169,6 +169,7 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   }
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
   evaluateAgainstLogTruth(log, e.segmentation, trajectories, diagnostics, o, global);
+  for (const std::string& w : e.ekf.warnings) std::cerr << "warning: " << w << "\n";
   if (!global.quiet) {
     const est::EkfStats& s = e.ekf.stats;
     std::cout << "segments: " << e.segmentation.segments.size() << " ("

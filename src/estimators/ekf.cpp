@@ -600,13 +600,73 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
   return out;
 }
 
+namespace {
+
+double gatedFraction(long rejected, long updates) {
+  return updates > 0 ? static_cast<double>(rejected) / static_cast<double>(updates) : 0.0;
+}
+
+std::string percent(double f) {
+  return std::to_string(static_cast<int>(std::lround(100.0 * f))) + " %";
+}
+
+EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg,
+                     const InitialState& init, const EkfOptions& options);
+
+}  // namespace
+
 EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const InitialState& init,
                  const EkfOptions& requested) {
   EkfOptions options = requested;
+  std::vector<std::string> warnings;
+  EkfResult result;
+  bool done = false;
   if (options.velocity == EkfOptions::VelocityModel::kAuto) {
     options.velocity = log.accel ? EkfOptions::VelocityModel::kAccelDriven
                                  : EkfOptions::VelocityModel::kPerturbation;
+    if (log.accel) {
+      result = runEkfWith(log, seg, init, options);
+      // An accelerometer error shows as a velocity the wheels deny (slip gated out) or, when
+      // the velocity follows the wheels, as a tilt the sun denies (sun gated out).
+      const EkfStats& st = result.stats;
+      const double fs = gatedFraction(st.slip_rejected, st.slip_updates);
+      const double fn = gatedFraction(st.sun_rejected, st.sun_updates);
+      const bool slip_bad = st.slip_updates >= 50 && fs > kMaxGatedFraction;
+      const bool sun_bad = st.sun_updates >= 20 && fn > kMaxGatedFraction;
+      if (slip_bad || sun_bad) {
+        warnings.push_back(
+            "ekf: the accelerometer-driven velocity model gated out " +
+            (slip_bad ? percent(fs) + " of the slip updates" : percent(fn) + " of the sun updates") +
+            " (the accelerometer disagrees with the wheels or the sun: an unmodelled bias or "
+            "mounting); using the wheel-driven model instead (--velocity-model perturbation)");
+        options.velocity = EkfOptions::VelocityModel::kPerturbation;
+      } else {
+        done = true;
+      }
+    }
   }
+  if (!done) result = runEkfWith(log, seg, init, options);
+  result.velocity = options.velocity;
+  const EkfStats& s = result.stats;
+  if (const double f = gatedFraction(s.slip_rejected, s.slip_updates);
+      s.slip_updates >= 50 && f > kMaxGatedFraction) {
+    warnings.push_back("ekf: " + percent(f) + " of the slip updates were gated out: the slip "
+                       "model does not fit this rover's wheels (rover.yaml slip_noise, "
+                       "skid_steer; traverse calibrate)");
+  }
+  if (const double f = gatedFraction(s.sun_rejected, s.sun_updates);
+      s.sun_updates >= 20 && f > kMaxGatedFraction) {
+    warnings.push_back("ekf: " + percent(f) + " of the sun updates were gated out: the sun "
+                       "sensor's mounting, field of view or the sun's direction does not fit");
+  }
+  result.warnings = std::move(warnings);
+  return result;
+}
+
+namespace {
+
+EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg,
+                     const InitialState& init, const EkfOptions& options) {
   Ekf ekf(log.config, log.geometry, options, init,
           sensors::GyroAxes::forColumns(log.gyro.values.cols()).isThreeAxis(), log.cmd.has_value());
   ekf.setSamplePeriods(medianPeriod(log.gyro), log.accel ? medianPeriod(*log.accel) : 0.1);
@@ -663,6 +723,8 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
   result.stats = ekf.stats();
   return result;
 }
+
+}  // namespace
 
 // The measurement sizes the filter uses (and the tests call), and the double rate model.
 #define TRAVERSE_EKF_INSTANTIATE_UPDATE(M)                                                       \

@@ -42,7 +42,13 @@ Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config) {
   e.ekf = est::runEkf(log, e.segmentation, e.init, config.ekf);
   e.segments = segmentRows(e.segmentation, e.ekf.trajectory);
   if (config.smooth) {
-    e.smoothed = smoother::smooth(log, e.segmentation, e.ekf.trajectory, config.smoother);
+    smoother::SmootherOptions so = config.smoother;
+    // kAuto follows the EKF's choice: when the EKF gave up the accelerometer-driven velocity
+    // (runEkf's rule), so does the smoother it seeds.
+    if (so.velocity == smoother::SmootherOptions::VelocityModel::kAuto &&
+        e.ekf.velocity == est::EkfOptions::VelocityModel::kPerturbation)
+      so.velocity = smoother::SmootherOptions::VelocityModel::kPerturbation;
+    e.smoothed = smoother::smooth(log, e.segmentation, e.ekf.trajectory, so);
     e.segments = smoother::smootherSegmentRows(e.segments, *e.smoothed);
   }
   return e;

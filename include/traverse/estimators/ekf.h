@@ -16,6 +16,8 @@
 #pragma once
 
 #include <array>
+#include <string>
+#include <vector>
 
 #include "traverse/estimators/initialization.h"
 #include "traverse/estimators/trajectory.h"
@@ -196,9 +198,22 @@ class Ekf {
 struct EkfResult {
   Trajectory trajectory;  ///< one node per joint sample
   EkfStats stats;
+  EkfOptions::VelocityModel velocity = EkfOptions::VelocityModel::kPerturbation;  ///< as run
+  /// What the run should tell its user (one line each, without "warning: "): most updates of
+  /// a kind gated out, the velocity model given up.
+  std::vector<std::string> warnings;
 };
 
+/// Above this fraction of slip (or sun) updates rejected by the χ² gate the model, not the
+/// data, is wrong: runEkf says so, and gives up the accelerometer-driven velocity model.
+inline constexpr double kMaxGatedFraction = 0.2;
+
 /// Runs the filter over a whole log (events in time order: gyro, joints, sun, accel).
+/// VelocityModel::kAuto: the accelerometer drives the velocity (O-4) when the log has one, unless
+/// that run gates out more than kMaxGatedFraction of its slip updates — the wheels then disagree
+/// with the integrated accelerometer (an unmodelled bias, a mounting error), which would
+/// otherwise integrate into metres — and the run is repeated with the wheel-driven model (K-1),
+/// with a warning.
 EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const InitialState& init,
                  const EkfOptions& options = {});
 
