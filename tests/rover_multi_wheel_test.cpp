@@ -267,3 +267,42 @@ TEST(EkfVelocityModelRule, BiasedAccelerometerFallsBackToTheWheelsWithAWarning) 
 
 }  // namespace
 }  // namespace traverse
+
+namespace traverse {
+namespace {
+
+io::Stream from(const io::Stream& s, double t0) {
+  Eigen::Index k = 0;
+  while (k < s.size() && s.t[k] < t0) ++k;
+  io::Stream out;
+  out.columns = s.columns;
+  out.t = s.t.tail(s.size() - k);
+  out.values = s.values.bottomRows(s.size() - k);
+  return out;
+}
+
+// A log that begins while the rover drives (straight-1m from t = 8 s, mid-leg at ~0.05 m/s,
+// no cmd.csv): the initial speed comes from the wheels, not from an assumed rest.
+TEST(EkfInitialState, ALogStartingInMotionTakesItsSpeedFromTheWheels) {
+  const std::filesystem::path datasets = testing::sourceDir() + "/datasets";
+  const sim::Scenario sc = sim::loadScenario("straight-1m", datasets);
+  sim::Simulation sim = sim::simulate(sc, sim::roverDirectory(sc, datasets), 2);
+  io::TraverseLog& log = sim.log;
+  const double t0 = 8.0;
+  log.gyro = from(log.gyro, t0), log.joints = from(log.joints, t0);
+  if (log.sun) log.sun = from(*log.sun, t0);
+  if (log.accel) log.accel = from(*log.accel, t0);
+  if (log.cmd) log.cmd.reset();  // no command: the speed must come from the wheels
+  if (log.truth) log.truth = from(*log.truth, t0);
+  const sim::TruthSample truth0 = sim::interpolateTruth(sim.truth, log.joints.t[0]);
+  const pipeline::Estimates e = pipeline::estimate(log);
+  EXPECT_NEAR(e.init.v_body.x(), truth0.v_body.x(), 0.005) << "truth " << truth0.v_body.x();
+  EXPECT_GT(truth0.v_body.x(), 0.03);  // really in motion
+  EXPECT_EQ(e.ekf.velocity, est::EkfOptions::VelocityModel::kAccelDriven);
+  // The EKF starts from that speed (O-4: v_p is the body velocity).
+  ASSERT_FALSE(e.ekf.trajectory.nodes.empty());
+  EXPECT_NEAR(e.ekf.trajectory.nodes.front().v_body.x(), truth0.v_body.x(), 0.01);
+}
+
+}  // namespace
+}  // namespace traverse

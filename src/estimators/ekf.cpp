@@ -90,6 +90,9 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   x_ = init.p_site;
   b_ = init.bias;
   w_p_.setZero(), v_p_.setZero(), xi_.setZero(nw_);
+  // A log that starts in motion: the body velocity from the wheels (initialState). v_p is the
+  // velocity itself with O-4 and without cmd.csv; with a command it is the perturbation, zero.
+  if (options.velocity == EkfOptions::VelocityModel::kAccelDriven || !has_cmd) v_p_ = init.v_body;
   P_.setZero(n_, n_);
   P_.block<3, 3>(I::kTheta, I::kTheta) = init.attitude_sigma.cwiseAbs2().asDiagonal();
   P_.block<3, 3>(I::kRate, I::kRate)

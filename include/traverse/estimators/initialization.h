@@ -18,6 +18,10 @@ struct InitialState {
   Vec3d p_site = Vec3d::Zero();
   Quatd q_site_body = Quatd::Identity();
   Vec3d bias = Vec3d::Zero();
+  /// Body velocity at t: zero when the log starts at rest, else from the wheels (a log may begin
+  /// while the rover drives): v_x = mean_i(r_i ψ̇_i + ω_z (y_i + icr_offset_y,i)) at the first
+  /// joint sample, as dead reckoning reads it.
+  Vec3d v_body = Vec3d::Zero();
   /// 1σ of roll, pitch, yaw (rad) and of the bias (rad/s) behind the values above.
   Vec3d attitude_sigma = Vec3d::Constant(0.1);
   Vec3d bias_sigma = Vec3d::Constant(0.005);
