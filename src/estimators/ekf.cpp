@@ -233,15 +233,22 @@ EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P)
   return out;
 }
 
-void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P_inout) {
-  EkfMatrix& P = *P_inout;
+namespace {
+
+/// Φ P Φᵀ on views of F and P at compile-time size N (the 4- and 6-wheel rovers' 19 and 21) or
+/// Eigen::Dynamic: the same operations in the same order, so the same numbers, with the loop
+/// bounds known to the compiler where they can be.
+template <int N>
+void propagateKernel(const double* F_data, double dt, double* P_data, int n) {
+  using Mat = Eigen::Matrix<double, N, N>;
+  const Eigen::Map<const Mat> F(F_data, n, n);
+  Eigen::Map<Mat> P(P_data, n, n);
   // Φ = I + A, A = F dt + ½ (F dt)²; F has ~50 nonzeros of 441, so A P and A (A P)ᵀ are
   // computed over A's nonzero entries: Φ P Φᵀ = P + A P + (A P)ᵀ + A (A P)ᵀ.
   struct Entry {
     int i, j;
     double v;
   };
-  const int n = static_cast<int>(F.rows());
   std::array<Entry, kMaxEkfStates * kMaxEkfStates> nz;
   int n_nz = 0;
   for (int j = 0; j < n; ++j) {
@@ -249,7 +256,7 @@ void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P_inou
       if (F(i, j) != 0.0) nz[n_nz++] = {i, j, F(i, j) * dt};
     }
   }
-  EkfMatrix A = EkfMatrix::Zero(n, n);  // F dt + ½ (F dt)², the square over the nonzeros
+  Mat A = Mat::Zero(n, n);  // F dt + ½ (F dt)², the square over the nonzeros
   for (int a = 0; a < n_nz; ++a) {
     A(nz[a].i, nz[a].j) += nz[a].v;
     for (int b = 0; b < n_nz; ++b) {
@@ -263,11 +270,39 @@ void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P_inou
     }
   }
   // Column operations only (Eigen is column-major): B = P Aᵀ, D = Bᵀ = A P, E = D Aᵀ = A P Aᵀ.
-  EkfMatrix B = EkfMatrix::Zero(n, n), E = EkfMatrix::Zero(n, n);
+  Mat B = Mat::Zero(n, n), E = Mat::Zero(n, n);
   for (int a = 0; a < n_nz; ++a) B.col(nz[a].i).noalias() += nz[a].v * P.col(nz[a].j);
-  const EkfMatrix D = B.transpose();
+  const Mat D = B.transpose();
   for (int a = 0; a < n_nz; ++a) E.col(nz[a].i).noalias() += nz[a].v * D.col(nz[a].j);
   P += D + B + E;
+}
+
+/// The expanded Joseph form on a view of P at compile-time size N (as propagateKernel).
+template <int N, int M>
+void josephKernel(double* P_data, int n, const EkfRows<M>& Kt_in, const EkfRows<M>& HP_in,
+                  const Eigen::Matrix<double, M, M>& S) {
+  using Mat = Eigen::Matrix<double, N, N>;
+  using Rows = Eigen::Matrix<double, M, N, M == 1 ? Eigen::RowMajor : Eigen::ColMajor>;
+  Eigen::Map<Mat> P(P_data, n, n);
+  const Rows Kt = Kt_in, HP = HP_in;
+  const Rows SKt = S * Kt;
+  for (int j = 0; j < n; ++j) {
+    for (int i = j; i < n; ++i) {
+      P(i, j) += Kt.col(i).dot(SKt.col(j)) - Kt.col(i).dot(HP.col(j)) - HP.col(i).dot(Kt.col(j));
+    }
+  }
+  P.template triangularView<Eigen::StrictlyUpper>() = P.transpose();
+}
+
+}  // namespace
+
+void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P) {
+  const int n = static_cast<int>(F.rows());
+  switch (n) {
+    case ekfStates(4): propagateKernel<ekfStates(4)>(F.data(), dt, P->data(), n); break;
+    case ekfStates(6): propagateKernel<ekfStates(6)>(F.data(), dt, P->data(), n); break;
+    default: propagateKernel<Eigen::Dynamic>(F.data(), dt, P->data(), n); break;
+  }
 }
 
 template <int M>
@@ -290,14 +325,12 @@ void josephUpdate(EkfMatrix* P, const EkfCols<M>& K, const EkfCols<M>& PHt,
   // (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K (HP) − (HP)ᵀ Kᵀ + K S Kᵀ with HP = (P Hᵀ)ᵀ: rank-M
   // products instead of two 21×21×21 ones, on the lower triangle with contiguous M-vectors.
   const EkfRows<M> Kt = K.transpose(), HP = PHt.transpose();
-  const EkfRows<M> SKt = S * Kt;
   const auto n = static_cast<int>(P->rows());
-  for (int j = 0; j < n; ++j) {
-    for (int i = j; i < n; ++i) {
-      (*P)(i, j) += Kt.col(i).dot(SKt.col(j)) - Kt.col(i).dot(HP.col(j)) - HP.col(i).dot(Kt.col(j));
-    }
+  switch (n) {
+    case ekfStates(4): josephKernel<ekfStates(4), M>(P->data(), n, Kt, HP, S); break;
+    case ekfStates(6): josephKernel<ekfStates(6), M>(P->data(), n, Kt, HP, S); break;
+    default: josephKernel<Eigen::Dynamic, M>(P->data(), n, Kt, HP, S); break;
   }
-  P->template triangularView<Eigen::StrictlyUpper>() = P->transpose();
 }
 
 Mat3d resetJacobian(const Vec3d& dtheta) {
