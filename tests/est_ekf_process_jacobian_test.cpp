@@ -277,7 +277,8 @@ EkfMatrix randomCovariance(std::mt19937& rng) {
   EkfMatrix L(kN, kN);
   for (int j = 0; j < kN; ++j) L.col(j) = randomVector<kN>(rng);
   const EkfVector scale = (randomVector<kN>(rng, 1.0).array() * 2.0).exp().matrix();
-  return scale.asDiagonal() * (L * L.transpose() + EkfMatrix::Identity(kN, kN)) * scale.asDiagonal();
+  return scale.asDiagonal() * (L * L.transpose() + EkfMatrix::Identity(kN, kN)) *
+         scale.asDiagonal();
 }
 
 // Φ P Φᵀ over F's nonzeros equals the dense (I + F dt + ½(F dt)²) P (…)ᵀ, and propagate adds
@@ -356,8 +357,7 @@ void expectJosephMatchesDense(std::mt19937& rng) {
     // Joseph holds for any gain: the optimal one, a scaled one and an arbitrary one.
     EkfCols<M> K_arb(kN, M);
     for (int j = 0; j < M; ++j) K_arb.col(j) = randomVector<kN>(rng);
-    for (const EkfCols<M>& K :
-         {K_opt, EkfCols<M>(0.6 * K_opt), K_arb}) {
+    for (const EkfCols<M>& K : {K_opt, EkfCols<M>(0.6 * K_opt), K_arb}) {
       EkfMatrix P_new = P;
       detail::josephUpdate<M>(&P_new, K, PHt, S);
       const EkfMatrix dense = denseJoseph<M>(P, H, R, K);
@@ -416,8 +416,7 @@ TEST(EstEkfJoseph, SlipUpdateMatchesDenseReference) {
       ekf.setCovariance(P);
       ASSERT_TRUE(ekf.update<4>(r, H, R, 0.0));
 
-      const EkfCols<4> K =
-          P * H.transpose() * (H * P * H.transpose() + R).inverse();
+      const EkfCols<4> K = P * H.transpose() * (H * P * H.transpose() + R).inverse();
       const EkfVector dx = K * r;
       EkfMatrix G = EkfMatrix::Identity(kN, kN);
       G.block<3, 3>(I::kTheta, I::kTheta) =

@@ -3,8 +3,8 @@
 // measurements.
 #include <gtest/gtest.h>
 
-#include "support/rocky7_coords.h"
 #include "support/jacobian_check.h"
+#include "support/rocky7_coords.h"
 #include "traverse/estimators/ekf.h"  // chiSquareQuantile
 #include "traverse/estimators/segmentation.h"
 #include "traverse/sim/simulator.h"

@@ -52,10 +52,9 @@ TraverseLog cleanLog() {
   log.config.accel.noise_mps2 = 0.01;
   log.gyro = regular({"wz"}, 0, 60, 20);
   for (Eigen::Index k = 0; k < log.gyro.size(); ++k) log.gyro.values(k, 0) = 0.001 * n01(rng);
-  log.joints = regular(
-      {"gamma0", "gamma1", "gamma2", "lambda1", "lambda2", "psi1", "psi2", "psi3", "psi4", "psi5",
-       "psi6"},
-      0, 60, 10);
+  log.joints = regular({"gamma0", "gamma1", "gamma2", "lambda1", "lambda2", "psi1", "psi2", "psi3",
+                        "psi4", "psi5", "psi6"},
+                       0, 60, 10);
   for (Eigen::Index k = 0; k < log.joints.size(); ++k) {
     const double t = log.joints.t[k];
     for (int c = 0; c < 5; ++c) log.joints.values(k, c) = 0.001 * n01(rng);

@@ -139,7 +139,9 @@ TEST_F(IoRoverConfig, UrdfErrorsNameTheJoint) {
     parseRoverGeometry("<robot name='x'><link name='base_link'/></robot>", c, "r.urdf");
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("r.urdf: joint 'rocker_left' (joints.csv column 'gamma0') is not in the URDF"));
+    EXPECT_THAT(
+        e.what(),
+        HasSubstr("r.urdf: joint 'rocker_left' (joints.csv column 'gamma0') is not in the URDF"));
   }
   EXPECT_THROW(parseRoverGeometry("<robot", c, "r.urdf"), InputError);
 }

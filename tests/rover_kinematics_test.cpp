@@ -38,8 +38,8 @@ TEST(RoverGeometry, LoadsRocky7FromUrdf) {
 TEST(RoverKinematics, ZeroAnglesPutWheelCentresInOnePlane) {
   const auto kin = forwardKinematics<double>(rocky7(), JointVectord::Zero(r7::kNumCoords));
   const Vec3d expected[r7::kNumWheels] = {{0.25, 0.24, -0.12},  {0.0, 0.24, -0.12},
-                                      {-0.20, 0.24, -0.12}, {0.25, -0.24, -0.12},
-                                      {0.0, -0.24, -0.12},  {-0.20, -0.24, -0.12}};
+                                          {-0.20, 0.24, -0.12}, {0.25, -0.24, -0.12},
+                                          {0.0, -0.24, -0.12},  {-0.20, -0.24, -0.12}};
   for (int i = 0; i < r7::kNumWheels; ++i) {
     EXPECT_LT((kin[i].T_body_wheel.p - expected[i]).norm(), 1e-15) << "wheel " << i + 1;
     EXPECT_LT((kin[i].T_body_wheel.R - Mat3d::Identity()).norm(), 1e-15);

@@ -23,9 +23,9 @@
 namespace traverse {
 namespace {
 
+using rover::CoordKind;
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
-using rover::CoordKind;
 
 const std::string kPathfinder = testing::sourceDir() + "/datasets/rovers/pathfinder/";
 
@@ -115,7 +115,8 @@ TEST(RoverMultiWheel, UrdfErrorsNameTheJoint) {
                            mapped, "r.urdf");
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("joint 'wheel_b' (joints.csv column 'psi1') is not in the URDF"));
+    EXPECT_THAT(e.what(),
+                HasSubstr("joint 'wheel_b' (joints.csv column 'psi1') is not in the URDF"));
   }
 }
 
@@ -158,11 +159,12 @@ TEST(RoverMultiWheel, SlipNoiseGrowsWithTurnAndSpeed) {
   }
   rover::SlipNoise n;
   n.longitudinal_mps = 0.01, n.lateral_mps = 0.02, n.normal_mps = 0.03, n.spin_rad_s = 0.04;
-  n.longitudinal_per_yaw_rate_m = 0.1, n.lateral_per_yaw_rate_m = 0.2, n.longitudinal_per_speed = 0.05;
+  n.longitudinal_per_yaw_rate_m = 0.1, n.lateral_per_yaw_rate_m = 0.2,
+  n.longitudinal_per_speed = 0.05;
   const Eigen::Matrix<double, 4, 6> J = Eigen::Matrix<double, 4, 6>::Zero();
   const Eigen::Matrix4d R = rover::slipCovariance(n, js, 0, Vec3d(0.6, 0, 0), Vec3d(0, 0, 0.5), J);
   EXPECT_NEAR(R(0, 0), 0.01 * 0.01 + 0.05 * 0.05 + 0.03 * 0.03, 1e-15);  // 0.1·0.5, 0.05·0.6
-  EXPECT_NEAR(R(1, 1), 0.02 * 0.02 + 0.1 * 0.1, 1e-15);                    // 0.2·0.5
+  EXPECT_NEAR(R(1, 1), 0.02 * 0.02 + 0.1 * 0.1, 1e-15);                  // 0.2·0.5
   EXPECT_NEAR(R(2, 2), 0.03 * 0.03, 1e-15);
   EXPECT_NEAR(R(3, 3), 0.04 * 0.04, 1e-15);
 }

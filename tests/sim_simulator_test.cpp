@@ -6,8 +6,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "support/rocky7_coords.h"
 #include "support/jacobian_check.h"
+#include "support/rocky7_coords.h"
 #include "traverse/core/error.h"
 #include "traverse/io/log_writer.h"
 #include "traverse/io/rover_description.h"

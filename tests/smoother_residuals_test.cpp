@@ -23,8 +23,8 @@
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
 
-#include "support/rocky7_coords.h"
 #include "support/jacobian_check.h"
+#include "support/rocky7_coords.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/rover/kinematics.h"
 #include "traverse/rover/slip_constraint.h"
@@ -691,7 +691,8 @@ TEST(SmootherResidualSlip, HandChecked) {
     const SlipResidual rolling(i, r7::kNumWheels, kin[i].T_body_wheel, radius,
                                rover::wheelJointTwist(kin[i], q_dot), nominal, sqrt_info);
     EXPECT_LT((evaluate(rolling, state) - Eigen::Vector4d(0, 2.5, 0, 1)).norm(), 1e-12);
-    const SlipResidual locked(i, r7::kNumWheels, kin[i].T_body_wheel, radius, Twistd::Zero(), nominal, sqrt_info);
+    const SlipResidual locked(i, r7::kNumWheels, kin[i].T_body_wheel, radius, Twistd::Zero(),
+                              nominal, sqrt_info);
     EXPECT_LT((evaluate(locked, state) - Eigen::Vector4d(-17.5, 2.5, 0, 1)).norm(), 1e-12);
   }
 }

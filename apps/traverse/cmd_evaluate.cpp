@@ -86,8 +86,8 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
       try {
         report.diagnostics = io::diagnose(io::readLog(log_dir));
       } catch (const InputError& e) {
-        std::cerr << "warning: " << opt->log_dir << ": no diagnostics in metrics.json: "
-                  << e.what() << "\n";
+        std::cerr << "warning: " << opt->log_dir << ": no diagnostics in metrics.json: " << e.what()
+                  << "\n";
       }
     }
     const fs::path json = out_dir / "metrics.json";

@@ -299,9 +299,15 @@ void josephKernel(double* P_data, int n, const EkfRows<M>& Kt_in, const EkfRows<
 void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P) {
   const int n = static_cast<int>(F.rows());
   switch (n) {
-    case ekfStates(4): propagateKernel<ekfStates(4)>(F.data(), dt, P->data(), n); break;
-    case ekfStates(6): propagateKernel<ekfStates(6)>(F.data(), dt, P->data(), n); break;
-    default: propagateKernel<Eigen::Dynamic>(F.data(), dt, P->data(), n); break;
+    case ekfStates(4):
+      propagateKernel<ekfStates(4)>(F.data(), dt, P->data(), n);
+      break;
+    case ekfStates(6):
+      propagateKernel<ekfStates(6)>(F.data(), dt, P->data(), n);
+      break;
+    default:
+      propagateKernel<Eigen::Dynamic>(F.data(), dt, P->data(), n);
+      break;
   }
 }
 
@@ -327,9 +333,15 @@ void josephUpdate(EkfMatrix* P, const EkfCols<M>& K, const EkfCols<M>& PHt,
   const EkfRows<M> Kt = K.transpose(), HP = PHt.transpose();
   const auto n = static_cast<int>(P->rows());
   switch (n) {
-    case ekfStates(4): josephKernel<ekfStates(4), M>(P->data(), n, Kt, HP, S); break;
-    case ekfStates(6): josephKernel<ekfStates(6), M>(P->data(), n, Kt, HP, S); break;
-    default: josephKernel<Eigen::Dynamic, M>(P->data(), n, Kt, HP, S); break;
+    case ekfStates(4):
+      josephKernel<ekfStates(4), M>(P->data(), n, Kt, HP, S);
+      break;
+    case ekfStates(6):
+      josephKernel<ekfStates(6), M>(P->data(), n, Kt, HP, S);
+      break;
+    default:
+      josephKernel<Eigen::Dynamic, M>(P->data(), n, Kt, HP, S);
+      break;
   }
 }
 
@@ -573,7 +585,8 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
   const std::vector<int> suspension = geo.coordsOfKind(rover::CoordKind::kSuspension);
   const auto gather = [&](const std::vector<int>& cols) {
     Eigen::MatrixXd m(j.size(), static_cast<Eigen::Index>(cols.size()));
-    for (size_t c = 0; c < cols.size(); ++c) m.col(static_cast<Eigen::Index>(c)) = j.values.col(cols[c]);
+    for (size_t c = 0; c < cols.size(); ++c)
+      m.col(static_cast<Eigen::Index>(c)) = j.values.col(cols[c]);
     return m;
   };
   // Steering: a wider window (rover.yaml steering_filter_window_s) for both angle and rate.
@@ -605,8 +618,7 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
   for (int c = 0; c < geo.numCoords(); ++c) {
     switch (geo.coords[static_cast<size_t>(c)].kind) {
       case rover::CoordKind::kSuspension:
-        rate_var[c] =
-            std::pow(js.angle_noise_rad / dt, 2) * rover::smoothedRateVarianceFactor(hg);
+        rate_var[c] = std::pow(js.angle_noise_rad / dt, 2) * rover::smoothedRateVarianceFactor(hg);
         break;
       case rover::CoordKind::kSteering:
         rate_var[c] = std::pow(s_steer / dt, 2) * rover::smoothedRateVarianceFactor(hs);
@@ -646,8 +658,8 @@ std::string percent(double f) {
   return std::to_string(static_cast<int>(std::lround(100.0 * f))) + " %";
 }
 
-EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg,
-                     const InitialState& init, const EkfOptions& options);
+EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const InitialState& init,
+                     const EkfOptions& options);
 
 }  // namespace
 
@@ -672,7 +684,8 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
       if (slip_bad || sun_bad) {
         warnings.push_back(
             "ekf: the accelerometer-driven velocity model gated out " +
-            (slip_bad ? percent(fs) + " of the slip updates" : percent(fn) + " of the sun updates") +
+            (slip_bad ? percent(fs) + " of the slip updates"
+                      : percent(fn) + " of the sun updates") +
             " (the accelerometer disagrees with the wheels or the sun: an unmodelled bias or "
             "mounting); using the wheel-driven model instead (--velocity-model perturbation)");
         options.velocity = EkfOptions::VelocityModel::kPerturbation;
@@ -686,13 +699,15 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
   const EkfStats& s = result.stats;
   if (const double f = gatedFraction(s.slip_rejected, s.slip_updates);
       s.slip_updates >= 50 && f > kMaxGatedFraction) {
-    warnings.push_back("ekf: " + percent(f) + " of the slip updates were gated out: the slip "
+    warnings.push_back("ekf: " + percent(f) +
+                       " of the slip updates were gated out: the slip "
                        "model does not fit this rover's wheels (rover.yaml slip_noise, "
                        "skid_steer; traverse calibrate)");
   }
   if (const double f = gatedFraction(s.sun_rejected, s.sun_updates);
       s.sun_updates >= 20 && f > kMaxGatedFraction) {
-    warnings.push_back("ekf: " + percent(f) + " of the sun updates were gated out: the sun "
+    warnings.push_back("ekf: " + percent(f) +
+                       " of the sun updates were gated out: the sun "
                        "sensor's mounting, field of view or the sun's direction does not fit");
   }
   result.warnings = std::move(warnings);
@@ -701,8 +716,8 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
 
 namespace {
 
-EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg,
-                     const InitialState& init, const EkfOptions& options) {
+EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const InitialState& init,
+                     const EkfOptions& options) {
   Ekf ekf(log.config, log.geometry, options, init,
           sensors::GyroAxes::forColumns(log.gyro.values.cols()).isThreeAxis(), log.cmd.has_value());
   ekf.setSamplePeriods(medianPeriod(log.gyro), log.accel ? medianPeriod(*log.accel) : 0.1);
@@ -763,13 +778,13 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg,
 }  // namespace
 
 // The measurement sizes the filter uses (and the tests call), and the double rate model.
-#define TRAVERSE_EKF_INSTANTIATE_UPDATE(M)                                                       \
-  template void detail::innovation<M>(const EkfMatrix&, const EkfRows<M>&,                      \
-                                      const Eigen::Matrix<double, M, M>&, EkfCols<M>*,           \
-                                      Eigen::Matrix<double, M, M>*);                             \
-  template void detail::josephUpdate<M>(EkfMatrix*, const EkfCols<M>&, const EkfCols<M>&,        \
-                                        const Eigen::Matrix<double, M, M>&);                     \
-  template bool Ekf::update<M>(const Eigen::Matrix<double, M, 1>&, const EkfRows<M>&,            \
+#define TRAVERSE_EKF_INSTANTIATE_UPDATE(M)                                                \
+  template void detail::innovation<M>(const EkfMatrix&, const EkfRows<M>&,                \
+                                      const Eigen::Matrix<double, M, M>&, EkfCols<M>*,    \
+                                      Eigen::Matrix<double, M, M>*);                      \
+  template void detail::josephUpdate<M>(EkfMatrix*, const EkfCols<M>&, const EkfCols<M>&, \
+                                        const Eigen::Matrix<double, M, M>&);              \
+  template bool Ekf::update<M>(const Eigen::Matrix<double, M, 1>&, const EkfRows<M>&,     \
                                const Eigen::Matrix<double, M, M>&, double);
 TRAVERSE_EKF_INSTANTIATE_UPDATE(1)
 TRAVERSE_EKF_INSTANTIATE_UPDATE(2)

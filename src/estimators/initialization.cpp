@@ -62,9 +62,9 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
   if (!w && log.joints.size() >= 3) {  // starting in motion: the speed from the wheels
     const int h = log.config.joints.rate_filter_half_window;
     const Eigen::Index m = std::min<Eigen::Index>(log.joints.size(), 2 * h + 1);
-    const Eigen::MatrixXd rates = rover::jointRates(
-        std::span<const double>(log.joints.t.data(), static_cast<size_t>(m)),
-        log.joints.values.topRows(m), {h});
+    const Eigen::MatrixXd rates =
+        rover::jointRates(std::span<const double>(log.joints.t.data(), static_cast<size_t>(m)),
+                          log.joints.values.topRows(m), {h});
     const double wz = log.gyro.values(0, log.gyro.values.cols() - 1) - s.bias.z();
     double v = 0.0;
     for (const rover::Wheel& wh : log.geometry.wheels)

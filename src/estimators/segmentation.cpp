@@ -171,7 +171,8 @@ Eigen::VectorXd wheelSpeeds(const io::TraverseLog& log, int half_window) {
       std::span<const double>(j.t.data(), static_cast<size_t>(j.size())), j.values,
       {half_window > 0 ? half_window : log.config.joints.rate_filter_half_window});
   Eigen::VectorXd speed = Eigen::VectorXd::Zero(j.size());
-  for (const rover::Wheel& w : log.geometry.wheels) speed += w.radius * rates.col(w.coord).cwiseAbs();
+  for (const rover::Wheel& w : log.geometry.wheels)
+    speed += w.radius * rates.col(w.coord).cwiseAbs();
   return speed / log.geometry.numWheels();
 }
 

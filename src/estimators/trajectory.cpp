@@ -41,7 +41,8 @@ io::Stream toStream(const Trajectory& tr) {
         nd.q_site_body.z();
     row.segment<3>(7) = nd.v_body.transpose();
     row.segment<3>(10) = nd.w_body.transpose();
-    if (nd.xi.size() != static_cast<Eigen::Index>(nw)) throw std::logic_error(tr.name + ": nodes with different wheel counts");
+    if (nd.xi.size() != static_cast<Eigen::Index>(nw))
+      throw std::logic_error(tr.name + ": nodes with different wheel counts");
     row.segment(13, nw) = nd.xi.transpose();
     row.segment<3>(13 + nw) = nd.bias.transpose();
     if (tr.has_covariance) {
@@ -86,7 +87,6 @@ Trajectory fromStream(const io::Stream& s, const std::string& name) {
         C(3, 4) = C(4, 3) = row[o + 3], C(3, 5) = C(5, 3) = row[o + 4];
         C(4, 5) = C(5, 4) = row[o + 5];
       }
-
     }
   }
   return tr;

@@ -30,8 +30,10 @@ TruthTrajectory::TruthTrajectory(const io::Stream& truth) {
   const auto quat = groupColumns(truth, {"qw", "qx", "qy", "qz"});
   if (pos.empty() || quat.empty()) throw std::invalid_argument("truth: needs x,y,z,qw,qx,qy,qz");
   std::vector<int> xi;  // xi1..xiN: every wheel's contact angle
-  for (int i = 1; truth.has("xi" + std::to_string(i)); ++i) xi.push_back(truth.col("xi" + std::to_string(i)));
-  if (xi.size() > static_cast<size_t>(rover::kMaxWheels)) throw std::invalid_argument("truth: too many xi columns");
+  for (int i = 1; truth.has("xi" + std::to_string(i)); ++i)
+    xi.push_back(truth.col("xi" + std::to_string(i)));
+  if (xi.size() > static_cast<size_t>(rover::kMaxWheels))
+    throw std::invalid_argument("truth: too many xi columns");
   const auto bias = groupColumns(truth, {"bx", "by", "bz"});
   const auto vel = groupColumns(truth, {"vx", "vy", "vz"});
   const auto rate = groupColumns(truth, {"wx", "wy", "wz"});

@@ -200,9 +200,15 @@ std::vector<double> jointNoise(const TraverseLog& log, const Stream& joints,
   std::vector<double> noise;
   for (const std::string& c : joints.columns) {
     switch (columnKind(log, c)) {
-      case rover::CoordKind::kSuspension: noise.push_back(config.joints.angle_noise_rad); break;
-      case rover::CoordKind::kSteering: noise.push_back(config.joints.steeringNoise()); break;
-      case rover::CoordKind::kDrive: noise.push_back(config.joints.wheel_noise_rad); break;
+      case rover::CoordKind::kSuspension:
+        noise.push_back(config.joints.angle_noise_rad);
+        break;
+      case rover::CoordKind::kSteering:
+        noise.push_back(config.joints.steeringNoise());
+        break;
+      case rover::CoordKind::kDrive:
+        noise.push_back(config.joints.wheel_noise_rad);
+        break;
     }
   }
   return noise;

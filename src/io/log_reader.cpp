@@ -24,8 +24,8 @@ void requireFile(const fs::path& file) {
 }
 
 std::optional<Stream> readOptional(const fs::path& dir, const std::string& name,
-                                   const rover::RoverGeometry& geometry,
-                                   const ReadOptions& options, ReadReport* report) {
+                                   const rover::RoverGeometry& geometry, const ReadOptions& options,
+                                   ReadReport* report) {
   const fs::path file = dir / name;
   std::error_code ec;
   if (!fs::exists(file, ec)) return std::nullopt;

@@ -95,10 +95,10 @@ void readSun(const YamlReader& r, const YAML::Node& root, SunConfig& sun) {
 }
 
 void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
-  const YAML::Node s = r.section(root, "slip_noise",
-                                 {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s",
-                                  "longitudinal_per_yaw_rate_m", "lateral_per_yaw_rate_m",
-                                  "longitudinal_per_speed"});
+  const YAML::Node s = r.section(
+      root, "slip_noise",
+      {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s", "longitudinal_per_yaw_rate_m",
+       "lateral_per_yaw_rate_m", "longitudinal_per_speed"});
   auto& sn = c.slip_noise;
   sn.longitudinal_mps =
       r.number(s, "slip_noise", "longitudinal_mps", sn.longitudinal_mps, 1e-9, 10.0);
@@ -183,11 +183,10 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   }
   YamlReader r(file);
   if (!root.IsMap()) throw InputError(file, 0, "expected a YAML mapping at the top level");
-  r.onlyKeys(
-      root, "",
-      {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "sun_sensor",
-       "accelerometer", "sun", "slip_noise", "skid_steer", "process", "joint_sensors", "smoother",
-       "gps"});
+  r.onlyKeys(root, "",
+             {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro",
+              "sun_sensor", "accelerometer", "sun", "slip_noise", "skid_steer", "process",
+              "joint_sensors", "smoother", "gps"});
   RoverConfig c;
   if (!root["format"].IsDefined()) throw InputError(file, 0, "key 'format': missing (expected 1)");
   c.format = r.integer(root, "", "format", 0, 0, 1000);
@@ -276,16 +275,17 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
       << YAML::Value << num(s.lateral_mps) << YAML::Key << "normal_mps" << YAML::Value
       << num(s.normal_mps) << YAML::Key << "spin_rad_s" << YAML::Value << num(s.spin_rad_s);
   // The slip that grows with the motion: written when used (older files stay byte-identical).
-  for (const auto& [key, value] : {std::pair{"longitudinal_per_yaw_rate_m", s.longitudinal_per_yaw_rate_m},
-                                   std::pair{"lateral_per_yaw_rate_m", s.lateral_per_yaw_rate_m},
-                                   std::pair{"longitudinal_per_speed", s.longitudinal_per_speed}}) {
+  for (const auto& [key, value] :
+       {std::pair{"longitudinal_per_yaw_rate_m", s.longitudinal_per_yaw_rate_m},
+        std::pair{"lateral_per_yaw_rate_m", s.lateral_per_yaw_rate_m},
+        std::pair{"longitudinal_per_speed", s.longitudinal_per_speed}}) {
     if (value != 0.0) out << YAML::Key << key << YAML::Value << num(value);
   }
   out << YAML::EndMap;
   if (c.skid_steer) {
-    out << YAML::Key << "skid_steer" << YAML::Value << YAML::BeginMap << YAML::Key
-        << "icr_y_left_m" << YAML::Value << num(c.skid_steer->icr_y_left_m) << YAML::Key
-        << "icr_y_right_m" << YAML::Value << num(c.skid_steer->icr_y_right_m) << YAML::EndMap;
+    out << YAML::Key << "skid_steer" << YAML::Value << YAML::BeginMap << YAML::Key << "icr_y_left_m"
+        << YAML::Value << num(c.skid_steer->icr_y_left_m) << YAML::Key << "icr_y_right_m"
+        << YAML::Value << num(c.skid_steer->icr_y_right_m) << YAML::EndMap;
   }
   const auto& p = c.process;
   out << YAML::Key << "process" << YAML::Value << YAML::BeginMap << YAML::Key

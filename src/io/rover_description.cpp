@@ -31,8 +31,7 @@ double wheelRadius(const urdf::LinkConstSharedPtr& link) {
       return std::static_pointer_cast<urdf::Cylinder>(g)->radius;
     return 0.0;
   };
-  if (link->collision && cyl(link->collision->geometry) != 0)
-    return cyl(link->collision->geometry);
+  if (link->collision && cyl(link->collision->geometry) != 0) return cyl(link->collision->geometry);
   if (link->visual && cyl(link->visual->geometry) != 0) return cyl(link->visual->geometry);
   return 0.0;
 }
@@ -165,8 +164,8 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
   for (rover::Coordinate& c : geo.coords) {
     const urdf::JointConstSharedPtr j = model->getJoint(c.joint);
     const urdf::LinkConstSharedPtr link = model->getLink(j->child_link_name);
-    const bool wheel = j->type == urdf::Joint::CONTINUOUS ||
-                       (link->child_joints.empty() && hasCylinder(link));
+    const bool wheel =
+        j->type == urdf::Joint::CONTINUOUS || (link->child_joints.empty() && hasCylinder(link));
     const int d = joint_index.at(c.joint);
     if (wheel) {
       if ((geo.joints[d].axis - Vec3d::UnitY()).norm() > 1e-9) {
@@ -185,12 +184,15 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       geo.wheels.push_back(w);
     } else {
       const Vec3d axis_body = at_zero[static_cast<size_t>(d)].R * geo.joints[d].axis;
-      c.kind = std::abs(axis_body.z()) > std::cos(30.0 * M_PI / 180.0) ? rover::CoordKind::kSteering
-                                                                      : rover::CoordKind::kSuspension;
+      c.kind = std::abs(axis_body.z()) > std::cos(30.0 * M_PI / 180.0)
+                   ? rover::CoordKind::kSteering
+                   : rover::CoordKind::kSuspension;
     }
   }
   if (geo.wheels.empty()) {
-    fail("the URDF has no wheel (a continuous joint, or a revolute joint ending in a cylinder link)");
+    fail(
+        "the URDF has no wheel (a continuous joint, or a revolute joint ending in a cylinder "
+        "link)");
   }
   if (geo.numWheels() > rover::kMaxWheels) {
     fail("the URDF has " + std::to_string(geo.numWheels()) + " wheels (at most " +
@@ -206,8 +208,11 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
     const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
     for (int w = 0; w < geo.numWheels(); ++w) {
       const double y = kin[w].T_body_wheel.p.y();
-      if (geo.wheels[w].steered) fail("skid_steer: wheel joint '" + geo.coords[geo.wheels[w].coord].joint + "' is steered");
-      if (std::abs(y) < 1e-6) fail("skid_steer: wheel joint '" + geo.coords[geo.wheels[w].coord].joint + "' is on the body's centre line (no side)");
+      if (geo.wheels[w].steered)
+        fail("skid_steer: wheel joint '" + geo.coords[geo.wheels[w].coord].joint + "' is steered");
+      if (std::abs(y) < 1e-6)
+        fail("skid_steer: wheel joint '" + geo.coords[geo.wheels[w].coord].joint +
+             "' is on the body's centre line (no side)");
       geo.wheels[w].icr_offset_y =
           (y > 0 ? config.skid_steer->icr_y_left_m : config.skid_steer->icr_y_right_m) - y;
     }

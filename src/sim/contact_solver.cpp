@@ -28,8 +28,10 @@ Posed ContactSolver::bodyPose(double x, double y, double yaw, const ContactState
 rover::JointVectord ContactSolver::joints(const rover::JointVectord& suspension,
                                           const rover::JointVectord& steering) const {
   rover::JointVectord q = geometry_.zeroJoints();
-  for (size_t c = 0; c < suspension_.size(); ++c) q[suspension_[c]] = suspension[static_cast<Eigen::Index>(c)];
-  for (size_t c = 0; c < steering_.size(); ++c) q[steering_[c]] = steering[static_cast<Eigen::Index>(c)];
+  for (size_t c = 0; c < suspension_.size(); ++c)
+    q[suspension_[c]] = suspension[static_cast<Eigen::Index>(c)];
+  for (size_t c = 0; c < steering_.size(); ++c)
+    q[steering_[c]] = steering[static_cast<Eigen::Index>(c)];
   return q;
 }
 
@@ -145,7 +147,8 @@ ContactState ContactSolver::solve(double x, double y, double yaw,
     double alpha = 1.0;  // backtrack if the gaps do not shrink
     while (alpha > 1e-3 && gaps(u + alpha * step, state.xi).norm() > F.norm()) alpha *= 0.5;
     u += alpha * step;
-    if (!u.allFinite() || (ns > 0 && u.tail(ns).cwiseAbs().maxCoeff() > options_.max_joint_angle_rad))
+    if (!u.allFinite() ||
+        (ns > 0 && u.tail(ns).cwiseAbs().maxCoeff() > options_.max_joint_angle_rad))
       break;
     // More wheels than unknowns: the least-squares optimum, once Gauss–Newton stops moving.
     if (!square && alpha * step.norm() < 1e-10) return unpack(u, state);

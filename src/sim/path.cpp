@@ -105,14 +105,8 @@ std::vector<PathSample> samplePath(const Scenario& sc, const rover::RoverGeometr
     if (target.size() > 0 && (target - steering).cwiseAbs().maxCoeff() > 1e-12) {
       const rover::JointVectord from = steering;
       emit_until(leg.steer_s, [&](double tau, double t) {
-        return PathSample{t,
-                          centre,
-                          yaw,
-                          from + (target - from) * smoothstep(tau / leg.steer_s),
-                          0,
-                          0,
-                          0,
-                          false};
+        return PathSample{t, centre, yaw, from + (target - from) * smoothstep(tau / leg.steer_s),
+                          0, 0,      0,   false};
       });
       steering = target;
     }

@@ -12,7 +12,6 @@
 namespace traverse::sim {
 namespace {
 
-
 double quantize(double x, double q) {
   return q > 0 ? q * std::round(x / q) : x;
 }
@@ -147,9 +146,9 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
     for (int c = 0; c < geo.numCoords(); ++c) {
       const rover::CoordKind kind = geo.coords[static_cast<size_t>(c)].kind;
       const bool wheel = kind == rover::CoordKind::kDrive;
-      const double noise = wheel                                   ? s.wheel_angle_noise_rad
+      const double noise = wheel                                 ? s.wheel_angle_noise_rad
                            : kind == rover::CoordKind::kSteering ? s.steering_noise_rad
-                                                                   : s.joint_angle_noise_rad;
+                                                                 : s.joint_angle_noise_rad;
       row[c] = quantize(x.joints[c] + noise * joint_rng.normal(),
                         wheel ? s.wheel_quantum_rad : s.joint_quantum_rad);
     }

@@ -15,7 +15,6 @@
 namespace traverse::sim {
 namespace {
 
-
 std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario& sc,
                                            uint64_t seed) {
   if (t.type == "plane") return std::make_shared<PlaneTerrain>(t.slope_rad, t.direction_rad);

@@ -55,9 +55,8 @@ bool segmentCovariance(const ResidualCollector& residuals, std::span<const NodeH
     node.bias_sigma.setZero();
     for (size_t i = 0; i < bias_axes.size(); ++i) {
       const int c = static_cast<int>(i);
-      const double var =
-          node_bias ? S(NodeColumns::bias(wheels) + c, NodeColumns::bias(wheels) + c)
-                    : m.global(c, c);
+      const double var = node_bias ? S(NodeColumns::bias(wheels) + c, NodeColumns::bias(wheels) + c)
+                                   : m.global(c, c);
       node.bias_sigma[bias_axes[i]] = std::sqrt(std::max(var, 0.0));
     }
   }

@@ -236,7 +236,7 @@ void SegmentBuilder::makeHandles() {
                    {b.xi, nw_, {node, C::kContact, nw_}, nullptr},
                    randomWalkBias()
                        ? BlockHandle{b.b, 3, {node, C::bias(nw_), bias_dim}, bias_manifold}
-                                    : segment_bias};
+                       : segment_bias};
   }
 }
 

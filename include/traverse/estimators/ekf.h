@@ -27,7 +27,9 @@
 namespace traverse::est {
 
 /// Size of the error state of a rover with `wheels` wheels, and its largest value.
-constexpr int ekfStates(int wheels) { return 15 + wheels; }
+constexpr int ekfStates(int wheels) {
+  return 15 + wheels;
+}
 inline constexpr int kMaxEkfStates = ekfStates(rover::kMaxWheels);
 /// Error-state vectors and matrices: fixed storage (no heap), size ekfStates(wheels).
 using EkfVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxEkfStates, 1>;

@@ -20,7 +20,7 @@ struct TrajectoryNode {
   Quatd q_site_body = Quatd::Identity();
   Vec3d v_body = Vec3d::Zero();
   Vec3d w_body = Vec3d::Zero();
-  rover::WheelVectord xi;  ///< contact angles ξ1..ξN, one per wheel
+  rover::WheelVectord xi;      ///< contact angles ξ1..ξN, one per wheel
   Vec3d bias = Vec3d::Zero();  ///< gyro bias (rad/s, body axes)
   /// Covariance of [δp_site (m); δθ_body (rad)] — valid when the trajectory has_covariance.
   Mat6d covariance = Mat6d::Zero();

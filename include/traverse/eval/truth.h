@@ -37,9 +37,9 @@ class TruthTrajectory {
   Quatd attitude(double t) const;  ///< q_site_body (body → site)
   /// The methods below throw std::logic_error when their group is absent.
   rover::WheelVectord contactAngles(double t) const;  ///< ξ1…ξN, rad
-  Vec3d bias(double t) const;                           ///< gyro bias, rad/s, body axes
-  Vec3d velocityBody(double t) const;                   ///< m/s
-  Vec3d bodyRate(double t) const;                       ///< rad/s
+  Vec3d bias(double t) const;                         ///< gyro bias, rad/s, body axes
+  Vec3d velocityBody(double t) const;                 ///< m/s
+  Vec3d bodyRate(double t) const;                     ///< rad/s
 
   /// Velocity in the site frame: R(q) v_body when truth has velocities, otherwise the slope of
   /// the position polyline on the segment holding t (the last segment at the end).

@@ -21,9 +21,9 @@
 namespace traverse::sim {
 
 struct ContactState {
-  double z = 0.0, roll = 0.0, pitch = 0.0;     ///< body origin height (site), Z-Y-X angles (rad)
-  rover::JointVectord suspension;  ///< suspension angles, in RoverGeometry::coords order
-  rover::WheelVectord xi;          ///< contact angles (rad), one per wheel
+  double z = 0.0, roll = 0.0, pitch = 0.0;  ///< body origin height (site), Z-Y-X angles (rad)
+  rover::JointVectord suspension;           ///< suspension angles, in RoverGeometry::coords order
+  rover::WheelVectord xi;                   ///< contact angles (rad), one per wheel
 };
 
 struct ContactSolverOptions {

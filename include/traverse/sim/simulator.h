@@ -1,6 +1,6 @@
-// The traverse simulator: a rover (any URDF: rocker-bogie, rigid, …) driven along a scenario's path over its terrain,
-// with ground truth at a high internal rate and every sensor sampled from it at its own rate
-// through the same measurement models the estimators use (docs/simulator.md).
+// The traverse simulator: a rover (any URDF: rocker-bogie, rigid, …) driven along a scenario's path
+// over its terrain, with ground truth at a high internal rate and every sensor sampled from it at
+// its own rate through the same measurement models the estimators use (docs/simulator.md).
 #pragma once
 
 #include <array>
@@ -51,8 +51,8 @@ struct PathSample {
   double yaw = 0.0;
   rover::JointVectord steering;  ///< steering angles, one per steering coordinate
   double speed_mps = 0.0;        ///< commanded speed of the turn-centre point
-  double yaw_rate_rad_s = 0.0;  ///< commanded yaw rate
-  double progress = 0.0;        ///< |speed| / cruise in [0, 1] (0 at rest)
+  double yaw_rate_rad_s = 0.0;   ///< commanded yaw rate
+  double progress = 0.0;         ///< |speed| / cruise in [0, 1] (0 at rest)
   bool moving = false;
 };
 

@@ -21,9 +21,8 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                                       seed.w_body, seed.xi[i], &J);
     const Eigen::Matrix4d R =
         rover::slipCovariance(noise, js, i, seed.v_body, seed.w_body, J.leftCols<6>());
-    const Vec4d nominal =
-        rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, js.joint_twist[i],
-                           geometry.wheels[i].icr_offset_y);
+    const Vec4d nominal = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist,
+                                             js.joint_twist[i], geometry.wheels[i].icr_offset_y);
     if (data.size() == data.capacity())
       throw std::logic_error("smoother: slip data would move under its cost functions");
     data.push_back(

@@ -134,7 +134,8 @@ using MarkovComponentResidual = DynamicAnalyticCost<MarkovComponent>;
 /// constrains would be unobservable.
 class StationaryPriorResidual final : public ceres::CostFunction {
  public:
-  explicit StationaryPriorResidual(const Eigen::VectorXd& sigma) : sqrt_info_(sigma.cwiseInverse()) {
+  explicit StationaryPriorResidual(const Eigen::VectorXd& sigma)
+      : sqrt_info_(sigma.cwiseInverse()) {
     set_num_residuals(static_cast<int>(sigma.size()));
     mutable_parameter_block_sizes()->push_back(static_cast<int>(sigma.size()));
   }
