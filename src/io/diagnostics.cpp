@@ -292,16 +292,7 @@ void diagnoseSpikes(const Stream& s, const std::string& file,
 Diagnostics diagnose(const TraverseLog& log, const DiagnosticsOptions& o) {
   Diagnostics d;
   std::vector<Finding>& out = d.findings;
-  const std::pair<const char*, const Stream*> streams[] = {
-      {"gyro.csv", &log.gyro},
-      {"joints.csv", &log.joints},
-      {"sun.csv", log.sun ? &*log.sun : nullptr},
-      {"accel.csv", log.accel ? &*log.accel : nullptr},
-      {"cmd.csv", log.cmd ? &*log.cmd : nullptr},
-      {"truth.csv", log.truth ? &*log.truth : nullptr},
-      {"gps.csv", log.gps ? &*log.gps : nullptr},
-  };
-  for (const auto& [file, stream] : streams) {
+  for (const auto& [file, stream] : logStreams(log)) {
     if (stream == nullptr) continue;
     const std::size_t first = out.size();
     diagnoseTiming(*stream, file, o, &out);

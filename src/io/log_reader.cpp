@@ -121,19 +121,11 @@ LogSummary summarize(const TraverseLog& log) {
   out.dir = log.dir.string();
   out.rover_name = log.config.name;
   out.format = log.config.format;
-  const std::pair<const char*, const Stream*> streams[] = {
-      {"gyro", &log.gyro},
-      {"joints", &log.joints},
-      {"sun", log.sun ? &*log.sun : nullptr},
-      {"accel", log.accel ? &*log.accel : nullptr},
-      {"cmd", log.cmd ? &*log.cmd : nullptr},
-      {"truth", log.truth ? &*log.truth : nullptr},
-      {"gps", log.gps ? &*log.gps : nullptr},
-  };
   double t0 = std::numeric_limits<double>::infinity();
   double t1 = -t0;
-  for (const auto& [name, stream] : streams) {
+  for (const auto& [file, stream] : logStreams(log)) {
     if (stream == nullptr) continue;
+    const std::string name = std::string(file).substr(0, std::string(file).size() - 4);  // no .csv
     out.streams.push_back(summarizeStream(name, *stream));
     if (stream->empty()) continue;
     t0 = std::min(t0, out.streams.back().t_first);

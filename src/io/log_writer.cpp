@@ -55,16 +55,7 @@ void writeLog(const fs::path& dir, const TraverseLog& log) {
   }
   const std::optional<fs::path> urdf = urdfSource(dir, log);  // before anything is written
   fs::create_directories(dir);
-  const std::pair<const char*, const Stream*> streams[] = {
-      {"gyro.csv", &log.gyro},
-      {"joints.csv", &log.joints},
-      {"sun.csv", log.sun ? &*log.sun : nullptr},
-      {"accel.csv", log.accel ? &*log.accel : nullptr},
-      {"cmd.csv", log.cmd ? &*log.cmd : nullptr},
-      {"truth.csv", log.truth ? &*log.truth : nullptr},
-      {"gps.csv", log.gps ? &*log.gps : nullptr},
-  };
-  for (const auto& [name, stream] : streams) {
+  for (const auto& [name, stream] : logStreams(log)) {
     if (stream != nullptr && !stream->empty()) writeCsv(dir / name, *stream);
   }
   saveRoverConfig(dir / "rover.yaml", log.config);
@@ -73,7 +64,7 @@ void writeLog(const fs::path& dir, const TraverseLog& log) {
     copyAtomically(*urdf, dir / log.config.urdf_file);
   }
   // A stream file left from an earlier log in `dir` would be read back as part of this one.
-  for (const auto& [name, stream] : streams) {
+  for (const auto& [name, stream] : logStreams(log)) {
     if (stream == nullptr || stream->empty()) fs::remove(dir / name);
   }
 }

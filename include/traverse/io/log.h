@@ -4,6 +4,7 @@
 // each channel is contiguous). Every stream keeps its own timestamps.
 #pragma once
 
+#include <array>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -51,6 +52,24 @@ struct TraverseLog {
   /// axis (m); the antenna's lever arm is RoverConfig::gps.
   std::optional<Stream> gps;
 };
+
+/// Every stream of a log with its file name, in the contract's order (gyro, joints, sun, accel,
+/// cmd, truth, gps); nullptr for an absent optional stream. Readers, writers and diagnostics walk
+/// this one list.
+struct NamedStream {
+  const char* file;  ///< "gyro.csv", …
+  const Stream* stream;
+};
+inline std::array<NamedStream, 7> logStreams(const TraverseLog& log) {
+  const auto opt = [](const std::optional<Stream>& s) { return s ? &*s : nullptr; };
+  return {{{"gyro.csv", &log.gyro},
+           {"joints.csv", &log.joints},
+           {"sun.csv", opt(log.sun)},
+           {"accel.csv", opt(log.accel)},
+           {"cmd.csv", opt(log.cmd)},
+           {"truth.csv", opt(log.truth)},
+           {"gps.csv", opt(log.gps)}}};
+}
 
 struct ReadOptions {
   bool skip_bad_rows = false;  ///< count and drop malformed rows instead of stopping
