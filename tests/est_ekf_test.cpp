@@ -112,6 +112,31 @@ TEST(EstEkf, AlternativeProcessModels) {
   EXPECT_LT(*metrics(estimate(s.log, o4).ekf.trajectory, s).get("final_position_error_m"), 0.05);
 }
 
+// A gyro glitch (one sample 2 rad/s off while the rover drives) is found by the diagnostics
+// and never reaches the estimators: same segmentation, yaw as good as without it.
+TEST(EstEkf, GyroSpikeIsRejectedAndCounted) {
+  const sim::Simulation s = simulate("multi-stop", {});
+  sim::Simulation spiked = s;
+  const Eigen::Index k = spiked.log.gyro.size() / 2;
+  ASSERT_EQ(spiked.log.gyro.columns.back(), "wz");
+  spiked.log.gyro.values(k, spiked.log.gyro.values.cols() - 1) += 2.0;
+  const Estimates clean = estimate(s.log), e = estimate(spiked.log);
+  ASSERT_EQ(e.rejected.size(), 1U);
+  EXPECT_EQ(e.rejected[0].file, "gyro.csv");
+  EXPECT_DOUBLE_EQ(e.rejected[0].t, spiked.log.gyro.t[k]);
+  ASSERT_EQ(e.segmentation.segments.size(), clean.segmentation.segments.size());
+  for (size_t i = 0; i < e.segmentation.segments.size(); ++i) {
+    EXPECT_NEAR(e.segmentation.segments[i].t_start, clean.segmentation.segments[i].t_start, 0.1);
+  }
+  const double yaw_clean = *metrics(clean.ekf.trajectory, s).get("yaw_rmse_deg");
+  const double yaw = *metrics(e.ekf.trajectory, s).get("yaw_rmse_deg");
+  EXPECT_LT(yaw, 1.1 * yaw_clean);
+  PipelineConfig keep;  // without the screen, the same glitch costs degrees of yaw
+  keep.reject_spikes = false;
+  EXPECT_GT(*metrics(estimate(spiked.log, keep).ekf.trajectory, s).get("yaw_rmse_deg"),
+            2 * yaw_clean);
+}
+
 TEST(EstDeadReckoning, FollowsTheGyroHeadingAndWheelDistance) {
   const sim::Simulation s =
       simulate("planar-18m", {"sensors.gyro.noise_rad_s=0", "slip.longitudinal_white_mps=0",

@@ -222,6 +222,31 @@ TEST(IoDiagnostics, ATurnIsNoSpike) {
   EXPECT_TRUE(ofKind(diagnose(log), "spike").empty());
 }
 
+// A glitch is one or two samples; five in a row at 20 Hz are a brief real turn, kept.
+TEST(IoDiagnostics, ABriefTransientIsNoSpikeButATwoSampleGlitchIs) {
+  TraverseLog log = cleanLog();
+  for (int k = 400; k < 405; ++k) log.gyro.values(k, 0) += 0.3;  // 0.25 s at t = 20 s
+  EXPECT_TRUE(ofKind(diagnose(log), "spike").empty()) << lines(diagnose(log));
+  log.gyro.values(800, 0) += 0.3;  // t = 40 s, two samples
+  log.gyro.values(801, 0) += 0.3;
+  const auto spikes = ofKind(diagnose(log), "spike");
+  ASSERT_EQ(spikes.size(), 2U);
+  EXPECT_DOUBLE_EQ(spikes[0].t, 40.0);
+  EXPECT_DOUBLE_EQ(spikes[1].t, 40.05);
+  EXPECT_THAT(spikes[0].message, HasSubstr("off the local median"));
+}
+
+// A rate that settles at a new level one sample after a quiet stretch (a wheel that starts to
+// turn, a quantised encoder) is a change, not a spike: it sits at one side's level.
+TEST(IoDiagnostics, AnOnsetIsNoSpike) {
+  TraverseLog log = cleanLog();
+  for (Eigen::Index k = 0; k < log.gyro.size(); ++k) {
+    const double t = log.gyro.t[k];
+    log.gyro.values(k, 0) = t < 20.0 ? 0.0 : t < 20.3 ? 0.2 : t < 21.0 ? 0.0 : 0.2;
+  }
+  EXPECT_TRUE(ofKind(diagnose(log), "spike").empty()) << lines(diagnose(log));
+}
+
 TEST(IoDiagnostics, SunAllInvalidOrOutOfView) {
   TraverseLog log = cleanLog();
   log.sun->values.col(2).setZero();

@@ -149,11 +149,19 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   const io::TraverseLog log = io::readLog(o.log_dir, io::ReadOptions{o.skip_bad_rows}, &report);
   for (const auto& [file, n] : report.skipped_rows)
     std::cerr << file << ": skipped " << n << " bad rows\n";
-  const io::Diagnostics diagnostics = io::diagnose(log);
-  for (const std::string& line : diagnostics.warningLines()) std::cerr << line << "\n";
+  io::Diagnostics diagnostics = io::diagnose(log);
   pipeline::PipelineConfig config = pipelineConfig(o);
   config.smooth = smooth;
-  pipeline::Estimates e = pipeline::estimate(log, config);
+  pipeline::Estimates e = pipeline::estimate(log, config, &diagnostics);
+  for (io::Finding& f : diagnostics.findings) {
+    for (const io::Finding& r : e.rejected) {
+      if (r.file == f.file && r.t == f.t && r.kind == f.kind && r.column == f.column) {
+        f.not_used = true;
+        f.message += " (sample not used)";
+      }
+    }
+  }
+  for (const std::string& line : diagnostics.warningLines()) std::cerr << line << "\n";
   for (const est::RefusedRest& r : e.segmentation.refused_rests) {
     std::cerr << "warning: " << o.log_dir << ": apparent rest " << r.t_start << " .. " << r.t_end
               << " s is not at rest (chi2 of gyro slope and wheel travel " << r.chi2 << " > "

@@ -141,6 +141,11 @@ JsonWriter& JsonWriter::integer(long long value) {
   return *this;
 }
 
+JsonWriter& JsonWriter::boolean(bool value) {
+  raw(value ? "true" : "false");
+  return *this;
+}
+
 JsonWriter& JsonWriter::string(std::string_view text) {
   raw(jsonString(text));
   return *this;

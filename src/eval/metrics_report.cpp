@@ -37,6 +37,9 @@ void writeDiagnostics(JsonWriter& json, const io::Diagnostics& d) {
   const auto counts = d.countsByKind();
   for (const std::string& kind : io::kFindingKinds) json.key(kind).integer(counts.at(kind));
   json.endObject();
+  long not_used = 0;
+  for (const io::Finding& f : d.findings) not_used += f.not_used;
+  json.key("samples_not_used").integer(not_used);
   json.key("by_file").beginObject();
   for (const auto& [file, kinds] : d.countsByFile()) {
     json.key(file).beginObject(/*compact=*/true);
@@ -56,6 +59,7 @@ void writeDiagnostics(JsonWriter& json, const io::Diagnostics& d) {
       json.key("value").number(f.value);
     }
     json.key("message").string(f.message);
+    if (f.not_used) json.key("not_used").boolean(true);
     json.endObject();
   }
   json.endArray();

@@ -261,9 +261,15 @@ void diagnoseSpikes(const Stream& s, const std::string& file,
   const Eigen::Index h = o.spike_half_window;
   if (h < 1 || s.size() < 2 * h + 1 || noise_floors.empty()) return;
   std::vector<double> window, deviation;
+  struct Candidate {
+    Eigen::Index k;
+    double median, sigma;
+  };
+  std::vector<Candidate> candidates;
   for (std::size_t c = 0; c < s.columns.size(); ++c) {
     const double noise_floor = noise_floors[std::min(c, noise_floors.size() - 1)];
     const auto v = s.values.col(static_cast<Eigen::Index>(c));
+    candidates.clear();
     for (Eigen::Index k = 0; k < s.size(); ++k) {
       // The window is the 2h neighbours, shifted inwards at the ends, never the sample itself.
       const Eigen::Index b = std::clamp<Eigen::Index>(k - h, 0, s.size() - 2 * h - 1);
@@ -278,13 +284,43 @@ void diagnoseSpikes(const Stream& s, const std::string& file,
       const double sigma = std::max(1.4826 * median(deviation), noise_floor);
       // σ = 0 (a quantised reading at rest, no declared noise): no scale to judge by.
       if (!(sigma > 0.0) || !(std::abs(v[k] - m) > o.spike_k * sigma)) continue;
-      Finding f = finding(file, "spike", s.t[k],
-                          "spike in " + s.columns[c] + " at t=" + formatSeconds(s.t[k]) + ": " +
-                              general(v[k]) + ", local median " + general(m) + ", robust sigma " +
-                              general(sigma));
-      f.column = s.columns[c];
-      f.value = v[k];
-      out->push_back(f);
+      // A spike stands out from both sides: an onset (a wheel that starts to turn, a rate that
+      // steps) sits at one side's level and moves away from the other's — it is a change, not a
+      // spike. Where both sides have h samples, the sample must differ from the median of each
+      // by more than the threshold, in the same sense.
+      if (k >= h && k + h < s.size()) {
+        const auto side = [&](Eigen::Index from) {
+          window.clear();
+          for (Eigen::Index i = from; i < from + h; ++i) window.push_back(v[i]);
+          return v[k] - median(window);
+        };
+        const double left = side(k - h), right = side(k + 1);
+        if (!(left * right > 0.0) ||
+            !(std::min(std::abs(left), std::abs(right)) > o.spike_k * sigma))
+          continue;
+      }
+      candidates.push_back({k, m, sigma});
+    }
+    // A glitch is one sample or two (a rate differenced from a glitched angle); a run of more
+    // outlying samples in a row is a real transient — a brief turn, a bump — and is kept.
+    for (std::size_t i = 0; i < candidates.size();) {
+      std::size_t j = i + 1;
+      while (j < candidates.size() && candidates[j].k == candidates[j - 1].k + 1) ++j;
+      if (static_cast<int>(j - i) <= o.spike_max_run) {
+        for (std::size_t r = i; r < j; ++r) {
+          const Candidate& cand = candidates[r];
+          const double x = v[cand.k];
+          Finding f = finding(file, "spike", s.t[cand.k],
+                              "spike in " + s.columns[c] + " at t=" + formatSeconds(s.t[cand.k]) +
+                                  ": " + general(x) + ", " + general(std::abs(x - cand.median)) +
+                                  " off the local median " + general(cand.median) +
+                                  " (robust sigma " + general(cand.sigma) + ")");
+          f.column = s.columns[c];
+          f.value = x;
+          out->push_back(f);
+        }
+      }
+      i = j;
     }
   }
 }

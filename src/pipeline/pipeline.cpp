@@ -1,6 +1,7 @@
 #include "traverse/pipeline/pipeline.h"
 
 #include <algorithm>
+#include <set>
 
 namespace traverse::pipeline {
 
@@ -34,8 +35,56 @@ std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& t
   return rows;
 }
 
-Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config) {
+namespace {
+
+/// The stream without the rows at the given times.
+io::Stream withoutRows(const io::Stream& s, const std::set<double>& times) {
+  io::Stream out;
+  out.columns = s.columns;
+  std::vector<Eigen::Index> keep;
+  keep.reserve(static_cast<size_t>(s.size()));
+  for (Eigen::Index k = 0; k < s.size(); ++k) {
+    if (!times.contains(s.t[k])) keep.push_back(k);
+  }
+  out.t.resize(static_cast<Eigen::Index>(keep.size()));
+  out.values.resize(out.t.size(), s.values.cols());
+  for (Eigen::Index i = 0; i < out.t.size(); ++i) {
+    out.t[i] = s.t[keep[static_cast<size_t>(i)]];
+    out.values.row(i) = s.values.row(keep[static_cast<size_t>(i)]);
+  }
+  return out;
+}
+
+}  // namespace
+
+io::TraverseLog withoutSpikes(const io::TraverseLog& log, const io::Diagnostics& diagnostics,
+                              std::vector<io::Finding>* rejected) {
+  io::TraverseLog out = log;
+  std::set<double> gyro, accel, joints;
+  for (const io::Finding& f : diagnostics.findings) {
+    if (f.kind != "spike") continue;
+    std::set<double>* times = f.file == "gyro.csv"     ? &gyro
+                              : f.file == "accel.csv"  ? &accel
+                              : f.file == "joints.csv" ? &joints
+                                                       : nullptr;
+    if (times == nullptr) continue;
+    times->insert(f.t);  // f.t is the sample's own stamp, as read
+    if (rejected) rejected->push_back(f);
+  }
+  if (!gyro.empty()) out.gyro = withoutRows(log.gyro, gyro);
+  if (!joints.empty()) out.joints = withoutRows(log.joints, joints);
+  if (!accel.empty() && log.accel) out.accel = withoutRows(*log.accel, accel);
+  return out;
+}
+
+Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
+                   const io::Diagnostics* diagnostics) {
   Estimates e;
+  const io::TraverseLog screened =
+      !config.reject_spikes ? input
+      : diagnostics         ? withoutSpikes(input, *diagnostics, &e.rejected)
+                            : withoutSpikes(input, io::diagnose(input), &e.rejected);
+  const io::TraverseLog& log = screened;
   e.segmentation = est::segment(log, config.segmentation);
   e.init = est::initialState(log, e.segmentation, config.init);
   e.dr = est::deadReckoning(log, e.segmentation, e.init, config.dead_reckoning);

@@ -31,6 +31,7 @@ class JsonWriter {
   JsonWriter& key(std::string_view name);
   JsonWriter& number(double value);
   JsonWriter& integer(long long value);
+  JsonWriter& boolean(bool value);
   JsonWriter& string(std::string_view text);
 
   /// The document so far, with a final newline once the outermost object is closed.

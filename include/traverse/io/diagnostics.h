@@ -21,8 +21,12 @@
 //                  more than motion_wheel_rad through the middle half of that stretch
 //   spike          a gyro, accelerometer or joint-angle sample farther than spike_k robust σ
 //                  from the median of the spike_half_window samples either side (σ = 1.4826
-//                  MAD, never below the noise rover.yaml declares for that sensor); a spike in
-//                  an angle is the spike pair the joint rates would carry
+//                  MAD, never below the noise rover.yaml declares for that sensor) and, away
+//                  from the ends, farther than that from the median of each side's h samples,
+//                  in the same sense (an onset differs from one side only), in a run of at
+//                  most spike_max_run such samples (more in a row are a real transient: a
+//                  brief turn, a bump); a spike in an angle is the spike pair the joint rates
+//                  would carry
 //   sun_invalid    every sun reading has valid = 0
 //   sun_out_of_view
 //                  valid readings whose fish-eye radius puts the sun outside the field of view
@@ -45,6 +49,7 @@ struct DiagnosticsOptions {
   double motion_wheel_rad = 0.1;  ///< a drive angle change that is motion
   int spike_half_window = 10;
   double spike_k = 10.0;
+  int spike_max_run = 2;  ///< consecutive outlying samples that are still a glitch
   int max_lines_per_kind = 10;  ///< stderr lines per (stream, kind); all are counted
 };
 
@@ -56,6 +61,7 @@ struct Finding {
   std::string column;       ///< stuck, spike: the channel; else empty
   double value = 0.0;       ///< spike: the sample; stuck: the repeated reading; else 0
   std::string message;      ///< "gap of 15.0 s at t=5.0" (no file, no "warning:")
+  bool not_used = false;    ///< the estimators were not given this sample (a rejected spike)
 };
 
 /// Every kind, in the order metrics.json lists them.

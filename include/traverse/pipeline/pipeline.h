@@ -9,6 +9,7 @@
 #include "traverse/estimators/dead_reckoning.h"
 #include "traverse/estimators/ekf.h"
 #include "traverse/estimators/segments_output.h"
+#include "traverse/io/diagnostics.h"
 #include "traverse/smoother/smoother.h"
 
 namespace traverse::pipeline {
@@ -29,6 +30,9 @@ struct PipelineConfig {
   DeadReckoningOptions dead_reckoning;
   EkfOptions ekf;
   bool smooth = false;  ///< run the smoother after the EKF
+  /// Give the estimators no sample that io::diagnose calls a spike (gyro.csv, accel.csv: the
+  /// sample; joints.csv: the row) — see withoutSpikes.
+  bool reject_spikes = true;
   smoother::SmootherOptions smoother;
 };
 
@@ -39,9 +43,22 @@ struct Estimates {
   EkfResult ekf;
   std::optional<smoother::SmootherResult> smoothed;
   std::vector<SegmentRow> segments;  ///< the smoother's bias and summary on motion rows
+  std::vector<io::Finding> rejected;  ///< the spikes whose samples the estimators were not given
 };
 
-Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {});
+/// The log without its spikes (step 0 of estimate): every gyro.csv and accel.csv sample and
+/// every joints.csv row that `diagnostics` holds a spike finding for is removed, so a glitch
+/// becomes a one-sample gap — propagated across with the noise the elapsed time implies — instead
+/// of a rate that the attitude integrates or a rest detector reads as motion. Those findings are
+/// appended to `rejected` when given. A spike is an isolated sample far outside its
+/// neighbourhood on both sides (io/diagnostics.h), so a real transient that lasts longer than a
+/// sample or two is kept.
+io::TraverseLog withoutSpikes(const io::TraverseLog& log, const io::Diagnostics& diagnostics,
+                              std::vector<io::Finding>* rejected = nullptr);
+
+/// `diagnostics`: io::diagnose(log) when the caller has it already (it is computed otherwise).
+Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {},
+                   const io::Diagnostics* diagnostics = nullptr);
 
 /// segments.csv rows from the segmentation and a trajectory with bias estimates: a rest row
 /// carries the window's own bias measurement on the gyro's axes (mean ± standard error), a
