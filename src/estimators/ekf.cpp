@@ -7,6 +7,7 @@
 #include <ceres/jet.h>
 #include <Eigen/LU>
 
+#include "traverse/io/diagnostics.h"
 #include "traverse/rover/joint_rates.h"
 #include "traverse/rover/nominal_slip.h"
 #include "traverse/sensors/accelerometer.h"
@@ -116,7 +117,7 @@ template <typename T>
 Vec3<T> Ekf::omega(const Vec3<T>& w_p, const Vec3<T>& b, const EkfInputs& in) const {
   if (options_.attitude == EkfOptions::AttitudeModel::kGyroMeasurement)
     return in.w_cmd.cast<T>() + w_p;
-  const Mat3<T> S = S_.cast<T>();
+  const Mat3<T> S = gyroAxes(in).cast<T>();
   return S * (in.gyro.cast<T>() - b) + (Mat3<T>::Identity() - S) * in.w_cmd.cast<T>() + w_p;
 }
 
@@ -130,6 +131,8 @@ Ekf::Damping Ekf::damping(const EkfInputs& in) const {
   d.a_v = has_cmd_ && !d.accel_driven ? -1.0 / pc.velocity_time_constant_s : 0.0;
   d.a_w = Vec3d::Constant(-1.0 / pc.rate_time_constant_s);
   if (!hybrid && !has_cmd_) d.a_w.z() = 0.0;
+  // Across a gyro gap the rate of a gyro axis has no prescription either without cmd.csv.
+  if (hybrid && in.gyro_gap && !has_cmd_) d.a_w = d.a_w.cwiseProduct(Vec3d::Ones() - S_.diagonal());
   d.a_xi = -1.0 / pc.contact_angle_time_constant_s;
   return d;
 }
@@ -152,13 +155,14 @@ void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
   F.setZero(n_, n_);
   F.block<3, 3>(I::kTheta, I::kTheta) = -so3::skew(w);
   F.block<3, 3>(I::kTheta, I::kRate).setIdentity();
-  if (hybrid) F.block<3, 3>(I::kTheta, I::kBias) = -S_;
+  if (hybrid) F.block<3, 3>(I::kTheta, I::kBias) = -gyroAxes(in);
   F.block<3, 3>(I::kRate, I::kRate) = d.a_w.asDiagonal();
   F.block<3, 3>(I::kPos, I::kTheta) = -R * so3::skew(v);
   F.block<3, 3>(I::kPos, I::kVel) = R;
   F.block(I::kXi, I::kXi, nw_, nw_).diagonal().setConstant(d.a_xi);
   out->v_dot.setZero();
-  if (d.accel_driven) {  // O-4, linearised with Jets through the shared accelerometer model
+  if (d.accel_driven &&
+      !in.accel_gap) {  // O-4, linearised with Jets through the shared accelerometer model
     Eigen::Matrix<double, 12, 1> s;
     s << Vec3d::Zero(), w_p_, v_p_, b_;
     Eigen::Matrix<double, 3, 12> J;
@@ -178,9 +182,9 @@ void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
     F.block<3, 3>(I::kVel, I::kRate) = J.block<3, 3>(0, 3);
     F.block<3, 3>(I::kVel, I::kVel) = J.block<3, 3>(0, 6);
     F.block<3, 3>(I::kVel, I::kBias) = J.block<3, 3>(0, 9);
-  } else {
+  } else if (!d.accel_driven) {
     F.block<3, 3>(I::kVel, I::kVel).diagonal().setConstant(d.a_v);
-  }
+  }  // (O-4 across an accelerometer gap: v̇ = 0, a random walk)
 }
 
 void Ekf::propagate(double dt, const EkfInputs& in) {
@@ -198,14 +202,15 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   // Continuous noise densities.
   EkfVector qc = EkfVector::Zero(n_);
   const double n_w = pc.rate_noise_rad_s2_per_sqrt_hz;
+  const Mat3d S = gyroAxes(in);
   for (int a = 0; a < 3; ++a) {
-    const bool measured = hybrid && S_(a, a) > 0;
+    const bool measured = hybrid && S(a, a) > 0;
     qc[I::kRate + a] = std::pow(measured ? n_w * options_.rate_noise_scale_measured_axes : n_w, 2);
     // A gyro-driven axis inherits the gyro's white noise (density σ² Δt at its sample period).
     if (measured)
       qc[I::kTheta + a] = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s * gyro_period_;
   }
-  qc.segment<3>(I::kVel).setConstant(accel_driven
+  qc.segment<3>(I::kVel).setConstant(accel_driven && !in.accel_gap
                                          ? std::pow(config_.accel.noise_mps2, 2) * accel_period_
                                          : std::pow(pc.velocity_noise_mps2_per_sqrt_hz, 2));
   qc.segment(I::kXi, nw_).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
@@ -433,7 +438,7 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     EkfRows<4> H = EkfRows<4>::Zero(4, n_);
     H.block<4, 3>(0, I::kVel) = J.leftCols<3>();
     H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
-    if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * S_;
+    if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * gyroAxes(in);
     H.col(I::kXi + i) = J.col(6);
     ++stats_.slip_updates;
     if (!update<4>(r, H, Ri, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
@@ -549,8 +554,18 @@ TrajectoryNode Ekf::node(double t, const EkfInputs& in) const {
 
 namespace {
 
-EkfInputs inputsAt(const io::TraverseLog& log, double t) {
+/// The gaps of the streams the inputs interpolate.
+struct InputGaps {
+  io::TimeGaps gyro, accel;
+};
+
+/// Inputs at t, for a step over [t0, t1] (t0 = t1 = t at an update): inside a gap when that
+/// interval meets one.
+EkfInputs inputsAt(const io::TraverseLog& log, double t, const InputGaps& gaps, double t0,
+                   double t1) {
   EkfInputs in;
+  in.gyro_gap = gaps.gyro.overlaps(t0, t1);
+  in.accel_gap = gaps.accel.overlaps(t0, t1);
   const Eigen::VectorXd g = interpolateRow(log.gyro, t);
   in.gyro = sensors::GyroAxes::forColumns(g.size()).toBody(g);
   if (log.cmd) {
@@ -722,6 +737,7 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
           sensors::GyroAxes::forColumns(log.gyro.values.cols()).isThreeAxis(), log.cmd.has_value());
   ekf.setSamplePeriods(medianPeriod(log.gyro), log.accel ? medianPeriod(*log.accel) : 0.1);
   const std::vector<JointSample> joints = jointSamples(log);
+  InputGaps gaps{io::TimeGaps(log.gyro), log.accel ? io::TimeGaps(*log.accel) : io::TimeGaps()};
   const double inf = std::numeric_limits<double>::infinity();
   const double margin = 0.25;  // rest updates keep clear of the detected boundaries
   Eigen::Index ig = 0, ij = 0, is = 0;
@@ -740,9 +756,9 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
     const double ts = log.sun && options.use_sun && is < log.sun->size() ? log.sun->t[is] : inf;
     const double tn = std::min({tg, tj, ts});
     if (tn == inf) break;
-    if (tn > t) ekf.propagate(tn - t, inputsAt(log, 0.5 * (t + tn)));
+    if (tn > t) ekf.propagate(tn - t, inputsAt(log, 0.5 * (t + tn), gaps, t, tn));
     t = tn;
-    const EkfInputs in = inputsAt(log, t);
+    const EkfInputs in = inputsAt(log, t, gaps, t, t);
     const RestWindow* rest = options.use_rest ? restAt(seg, t, margin, rest_cursor) : nullptr;
     if (tg == t) {
       if (k12) ekf.updateGyro(in.gyro);  // K-12: at rest this observes the bias by itself

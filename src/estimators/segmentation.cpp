@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "traverse/estimators/ekf.h"  // chiSquareQuantile
+#include "traverse/io/diagnostics.h"  // findGaps, TimeGaps
 #include "traverse/rover/joint_rates.h"
 #include "traverse/rover/rover_geometry.h"
 #include "traverse/sensors/gyro.h"
@@ -294,6 +295,30 @@ void trimRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
 
 namespace {
 
+/// A gap is never evidence of rest: rest needs positive evidence from the gyro and the wheels
+/// both. The gyro samples either side of a gyro gap (io::findGaps), and every gyro sample that
+/// falls inside a joints.csv gap or outside the joint stream's span (beyond its gap tolerance),
+/// are motion — so a rest window ends at the last sample that saw rest, the segment boundary
+/// falls at the gap's edge instead of its middle, and no zero-velocity or zero-rate constraint
+/// is put where nothing was measured.
+void gapsAreNotRest(const io::TraverseLog& log, std::vector<unsigned char>& rest) {
+  constexpr double kGapFactor = 3.0;  // as io::diagnose and `traverse info`
+  const io::Stream& g = log.gyro;
+  const io::Stream& j = log.joints;
+  for (const io::Gap& gap : io::findGaps(g, kGapFactor)) {
+    rest[static_cast<size_t>(gap.before)] = 0;
+    rest[static_cast<size_t>(gap.before) + 1] = 0;
+  }
+  if (j.empty()) return;
+  const io::TimeGaps joint_gaps(j, kGapFactor);
+  const double tol = kGapFactor * io::medianInterval(j);
+  for (Eigen::Index k = 0; k < g.size(); ++k) {
+    const double t = g.t[k];
+    if (joint_gaps.contains(t) || t < j.t[0] - tol || t > j.t[j.size() - 1] + tol)
+      rest[static_cast<size_t>(k)] = 0;
+  }
+}
+
 struct RestStatistic {
   double chi2 = 0.0;
   int dof = 0;
@@ -407,6 +432,7 @@ Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
   }
   seg.gyro_rest = hysteresis(active, o);
   snapMotionEnds(g, wheels, o, seg.gyro_rest);
+  gapsAreNotRest(log, seg.gyro_rest);
   trimRestRuns(log, o, seg.gyro_rest);
   testRestRuns(log, o, seg.gyro_rest, seg.refused_rests);
   // Runs of equal mode → segments; short rests are merged into the motion around them.

@@ -242,6 +242,32 @@ std::vector<Gap> findGaps(const Stream& s, double factor) {
   return gaps;
 }
 
+TimeGaps::TimeGaps(const Stream& s, double factor) {
+  for (const Gap& g : findGaps(s, factor)) spans_.emplace_back(s.t[g.before], s.t[g.before + 1]);
+}
+
+namespace {
+
+/// The first span that ends after t (spans are in time order and disjoint).
+auto firstEndingAfter(const std::vector<std::pair<double, double>>& spans, double t) {
+  return std::upper_bound(spans.begin(), spans.end(), t,
+                          [](double x, const auto& span) { return x < span.second; });
+}
+
+}  // namespace
+
+bool TimeGaps::contains(double t) const {
+  const auto it = firstEndingAfter(spans_, t);
+  return it != spans_.end() && it->first < t;
+}
+
+bool TimeGaps::overlaps(double t0, double t1) const {
+  if (!(t1 > t0)) return contains(t0);
+  // (a, b) meets (t0, t1) iff a < t1 and t0 < b.
+  const auto it = firstEndingAfter(spans_, t0);
+  return it != spans_.end() && it->first < t1;
+}
+
 void diagnoseTiming(const Stream& s, const std::string& file, const DiagnosticsOptions& o,
                     std::vector<Finding>* out) {
   diagnoseOrder(s, file, out);

@@ -81,7 +81,9 @@ SmootherData::SmootherData(const io::TraverseLog& log, const est::Trajectory& se
   for (Eigen::Index k = 0; k < log.gyro.size(); ++k)
     g.row(k) = gyro_axes.toBody(log.gyro.values.row(k)).transpose();
   gyro = IntegratedSignal(log.gyro.t, g);
+  gyro_gaps = io::TimeGaps(log.gyro);
   if (log.accel) {
+    accel_gaps = io::TimeGaps(*log.accel);
     accel_period_s = io::medianPeriod(*log.accel);
     accel = IntegratedSignal(log.accel->t, log.accel->values);
   }
@@ -311,7 +313,7 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
       at_rest ? Vec3d::Constant(1.0 / (o_.zero_rate_sigma_rad_s * dt))
               : AttitudeProcessResidual::sqrtInfo(dt, Vec3d::Constant(q_w), o_.attitude_floor_rad);
   addAttitudeProcess(residuals_, attitude_memo_, dt, att_info, a, b);
-  const bool accel = d_.accel_driven && !at_rest;
+  const bool accel = d_.accel_driven && !at_rest && !d_.accel_gaps.overlaps(t0, t1);
   const double q_a = cfg_.accel.noise_mps2 * cfg_.accel.noise_mps2 * d_.accel_period_s;
   const double q_v =
       accel ? q_a : pc.velocity_noise_mps2_per_sqrt_hz * pc.velocity_noise_mps2_per_sqrt_hz;
@@ -335,7 +337,7 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
                     pc.contact_angle_noise_rad_per_sqrt_s, contact_loss_.get(), a, b);
   // Gyro increments (K-12/K-13 integrated; O-1), except inside rest windows, whose readings
   // the rest-bias residual carries.
-  if (!at_rest)
+  if (!at_rest && !d_.gyro_gaps.overlaps(t0, t1))
     addGyroIncrement(residuals_, dt, d_.gyro.integral(t0, t1), cfg_.gyro.noise_rad_s,
                      d_.gyro_period_s, gyro_axes_, a, b);
   if (randomWalkBias())  // K-9

@@ -82,6 +82,11 @@ struct EkfInputs {
   Vec3d v_cmd = Vec3d::Zero(), w_cmd = Vec3d::Zero();
   Vec3d accel = Vec3d::Zero();
   bool has_accel = false;
+  /// Inside a gap of gyro.csv / accel.csv (io::TimeGaps): the reading is an interpolation
+  /// across time nothing measured. A gyro gap turns the gyro's axes into unmeasured ones for
+  /// the step (ω from the command and ω_p, with the full rate noise); an accelerometer gap
+  /// leaves the O-4 velocity a random walk (no v̇, the velocity process noise).
+  bool gyro_gap = false, accel_gap = false;
 };
 
 using rover::JointSample;
@@ -185,6 +190,8 @@ class Ekf {
   EkfOptions options_;
   bool three_axis_, has_cmd_;
   Mat3d S_;  ///< ∂ω/∂b = −S_ (gyro-driven) — the gyro's axes
+  /// The gyro's axes at these inputs: S_, or none inside a gyro gap.
+  Mat3d gyroAxes(const EkfInputs& in) const { return in.gyro_gap ? Mat3d::Zero() : S_; }
   double gate2_, gate4_;
   double gyro_period_ = 0.05, accel_period_ = 0.1;
   Vec3d last_w_cmd_ = Vec3d::Zero();  ///< commanded rate at the latest propagation (K-12 mode)

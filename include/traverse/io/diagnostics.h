@@ -49,7 +49,7 @@ struct DiagnosticsOptions {
   double motion_wheel_rad = 0.1;  ///< a drive angle change that is motion
   int spike_half_window = 10;
   double spike_k = 10.0;
-  int spike_max_run = 2;  ///< consecutive outlying samples that are still a glitch
+  int spike_max_run = 2;        ///< consecutive outlying samples that are still a glitch
   int max_lines_per_kind = 10;  ///< stderr lines per (stream, kind); all are counted
 };
 
@@ -88,6 +88,24 @@ struct Gap {
   double length_s = 0.0;
 };
 std::vector<Gap> findGaps(const Stream& s, double factor = 3.0);
+
+/// A stream's gaps as time spans (the stamps either side of each findGaps interval): where the
+/// stream says nothing. The estimators ask it whether a time or an interval is unobserved, so
+/// a gap is never read as a reading interpolated across it (a rate, a rest).
+class TimeGaps {
+ public:
+  TimeGaps() = default;
+  explicit TimeGaps(const Stream& s, double factor = 3.0);
+  /// t lies strictly inside a gap.
+  bool contains(double t) const;
+  /// The open interval (t0, t1) meets a gap's open interval.
+  bool overlaps(double t0, double t1) const;
+  bool empty() const { return spans_.empty(); }
+  const std::vector<std::pair<double, double>>& spans() const { return spans_; }
+
+ private:
+  std::vector<std::pair<double, double>> spans_;  ///< (t before, t after), in time order
+};
 /// The median interval of a stream (the mean of the two middle ones for an even count); 0 with
 /// fewer than two samples.
 double medianInterval(const Stream& s);

@@ -6,6 +6,7 @@
 
 #include <optional>
 
+#include "traverse/io/diagnostics.h"
 #include "traverse/sensors/gyro.h"
 #include "traverse/smoother/smoother.h"
 
@@ -39,6 +40,10 @@ struct SmootherData {
   bool has_cmd = false, accel_driven = false;
   double gyro_period_s = 0.05, accel_period_s = 0.1;
   IntegratedSignal gyro, accel;  ///< gyro as 3 axes (heading-only: z)
+  /// Where gyro.csv and accel.csv say nothing (io::TimeGaps): a node interval that meets a gyro
+  /// gap has no gyro increment (the attitude follows the rate process and the slip rows there),
+  /// one that meets an accelerometer gap the velocity random walk instead of O-4.
+  io::TimeGaps gyro_gaps, accel_gaps;
 };
 
 /// A segment: nodes [first, last] of SmootherData::nodes and the rest windows inside it.
