@@ -14,6 +14,7 @@
 #include "traverse/eval/metrics.h"
 #include "traverse/pipeline/pipeline.h"
 #include "traverse/sim/simulator.h"
+#include "traverse/smoother/segment_solve.h"
 
 namespace traverse::smoother {
 namespace {
@@ -359,6 +360,33 @@ TEST(Smoother, StopsAtTheIterationLimitWithoutLosingGround) {
   // The kept solution is not the EKF's.
   EXPECT_FALSE(
       sameBits(e.smoothed->trajectory.nodes[100].p_site, e.ekf.trajectory.nodes[100].p_site));
+}
+
+// A solve stopped at the iteration limit is kept only when its cost is consistent with the
+// declared noise (2F within the χ² quantile at 0.9999 for its residual rows); otherwise the
+// segment falls back to the EKF and the reason says why.
+TEST(Smoother, ANonConvergedSolveIsKeptOnlyWithAConsistentCost) {
+  // Wilson–Hilferty against the tabulated χ² quantile at 0.9999 for 100 dof (161.3).
+  EXPECT_NEAR(chiSquareBound(100.0), 161.3, 0.5);
+  ceres::Solver::Summary s;
+  s.termination_type = ceres::NO_CONVERGENCE;
+  s.num_residuals = 100;
+  s.initial_cost = 500.0;
+  s.final_cost = 70.0;  // 2F = 140: consistent
+  std::string why;
+  EXPECT_EQ(segmentStatus(s, true, &why), SegmentStatus::kNoConvergence);
+  EXPECT_TRUE(why.empty());
+  s.final_cost = 90.0;  // 2F = 180 > 161.3
+  EXPECT_EQ(segmentStatus(s, true, &why), SegmentStatus::kFallbackEkf);
+  EXPECT_NE(why.find("inconsistent cost"), std::string::npos) << why;
+  s.final_cost = 600.0;  // above the seed's
+  EXPECT_EQ(segmentStatus(s, true, &why), SegmentStatus::kFallbackEkf);
+  EXPECT_NE(why.find("rose"), std::string::npos) << why;
+  s.final_cost = 70.0;
+  EXPECT_EQ(segmentStatus(s, false, &why), SegmentStatus::kFallbackEkf);
+  EXPECT_NE(why.find("not finite"), std::string::npos) << why;
+  s.termination_type = ceres::CONVERGENCE;
+  EXPECT_EQ(segmentStatus(s, true), SegmentStatus::kConverged);
 }
 
 // The random-walk bias model with a zero random-walk noise would weight every bias step

@@ -464,7 +464,9 @@ SegmentSolution SegmentBuilder::solve() {
     for (double v : b.q) finite = finite && std::isfinite(v);
     for (double v : b.x) finite = finite && std::isfinite(v);
   }
-  sum.status = segmentStatus(summary, finite);
+  std::string why;
+  sum.status = segmentStatus(summary, finite, &why);
+  if (!why.empty()) sum.message = why;
   if (sum.status == SegmentStatus::kFallbackEkf)
     sum.final_cost = sum.seed_cost;  // the EKF's states stay
 

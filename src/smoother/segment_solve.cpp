@@ -2,9 +2,11 @@
 #include "traverse/smoother/segment_solve.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <memory>
 #include <ostream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -65,12 +67,40 @@ ceres::Solver::Summary solveSegmentProblem(ceres::Problem& problem,
   return summary;
 }
 
-SegmentStatus segmentStatus(const ceres::Solver::Summary& summary, bool finite) {
-  if (summary.termination_type == ceres::CONVERGENCE && finite) return SegmentStatus::kConverged;
-  if (summary.termination_type == ceres::NO_CONVERGENCE && finite &&
-      summary.final_cost <= summary.initial_cost)
-    return SegmentStatus::kNoConvergence;
-  return SegmentStatus::kFallbackEkf;
+double chiSquareBound(double dof) {
+  constexpr double kZ = 3.719016485;  // standard normal quantile at 0.9999
+  const double a = 2.0 / (9.0 * dof);
+  return dof * std::pow(1.0 - a + kZ * std::sqrt(a), 3);
+}
+
+SegmentStatus segmentStatus(const ceres::Solver::Summary& summary, bool finite, std::string* why) {
+  const auto say = [&](const std::string& text) {
+    if (why) *why = text;
+  };
+  if (!finite) {
+    say("the solution is not finite (" + summary.message + ")");
+    return SegmentStatus::kFallbackEkf;
+  }
+  if (summary.termination_type == ceres::CONVERGENCE) return SegmentStatus::kConverged;
+  if (summary.termination_type != ceres::NO_CONVERGENCE) {
+    say("the solve failed: " + summary.message);
+    return SegmentStatus::kFallbackEkf;
+  }
+  if (summary.final_cost > summary.initial_cost) {
+    say("no convergence, and the cost rose above the EKF seed's");
+    return SegmentStatus::kFallbackEkf;
+  }
+  const double rows = std::max(1, summary.num_residuals);
+  const double bound = chiSquareBound(rows);
+  if (2.0 * summary.final_cost > bound) {
+    std::ostringstream s;
+    s << "no convergence in " << std::max<int>(0, static_cast<int>(summary.iterations.size()) - 1)
+      << " iterations and an inconsistent cost: 2 x " << summary.final_cost << " > " << bound
+      << " (chi2 at 0.9999 for " << summary.num_residuals << " residual rows)";
+    say(s.str());
+    return SegmentStatus::kFallbackEkf;
+  }
+  return SegmentStatus::kNoConvergence;
 }
 
 void reportCostByKind(std::ostream& out, ceres::Problem& problem,

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <iosfwd>
 #include <span>
+#include <string>
 
 #include <ceres/problem.h>
 #include <ceres/solver.h>
@@ -27,9 +28,17 @@ ceres::Solver::Summary solveSegmentProblem(ceres::Problem& problem,
                                            std::chrono::steady_clock::time_point t0,
                                            SegmentSummary& sum);
 
-/// converged when Ceres' convergence test held; no_convergence at the iteration limit with a
-/// cost no higher than the start; fallback_ekf otherwise or when the solution is not finite.
-SegmentStatus segmentStatus(const ceres::Solver::Summary& summary, bool finite);
+/// converged when Ceres' convergence test held. A solve stopped at the iteration limit is kept
+/// (no_convergence) only when its states are finite, its cost is no higher than the seed's and
+/// the cost is consistent with the noise the residuals declare: 2 × final cost (Σ ρ(‖r‖²) of
+/// whitened residuals, χ² with about as many degrees of freedom as residual rows when the model
+/// holds) within the χ² quantile at 0.9999 for that many rows (Wilson–Hilferty). Otherwise, or
+/// when the solution is not finite, fallback_ekf; `why` (optional) then gets the reason
+/// (segments.csv's status says fallback_ekf, the run's output line says why).
+SegmentStatus segmentStatus(const ceres::Solver::Summary& summary, bool finite,
+                            std::string* why = nullptr);
+/// The χ² quantile at 0.9999 for `dof` degrees of freedom (Wilson–Hilferty; dof ≥ 1).
+double chiSquareBound(double dof);
 
 /// Cost ½ Σ ρ(‖r‖²) of each kind of residual at the current states, " kind cost (blocks)" per
 /// kind in name order (solver_report).
