@@ -119,5 +119,47 @@ TEST(EstGaps, AnAccelerometerGapIsARandomWalk) {
   EXPECT_LT(*eval::evaluate(e.smoothed->trajectory, truth).get("distance_error_pct"), 0.5);
 }
 
+// A wheel that stops turning for 12 s while straight-1m drives (it is dragged: its encoder
+// holds one reading, then counts on from there): the diagnostics call it stuck, and the
+// estimators take no slip rows from that wheel there (the χ² gate let them through: one wheel
+// of six pulls the velocity a sixth of the way), dead reckoning averages the other five.
+TEST(EstGaps, AStuckWheelIsLeftOut) {
+  const sim::Simulation s = simulate("straight-1m");
+  io::TraverseLog log = s.log;
+  const int c = log.geometry.wheels[2].coord;
+  Eigen::Index first = -1;
+  double lost = 0.0;
+  for (Eigen::Index k = 0; k < log.joints.size(); ++k) {
+    if (log.joints.t[k] < 8.0) continue;
+    if (first < 0) first = k;
+    if (log.joints.t[k] <= 20.0) {
+      lost = log.joints.values(k, c) - log.joints.values(first, c);
+      log.joints.values(k, c) = log.joints.values(first, c);  // exactly one reading
+    } else {
+      log.joints.values(k, c) -= lost;
+    }
+  }
+  const pipeline::Estimates clean = pipeline::estimate(s.log), e = pipeline::estimate(log);
+  std::string found;
+  for (const io::Finding& f : e.rejected) found += f.kind + " " + f.message + "\n";
+  ASSERT_EQ(e.rejected.size(), 1U) << found;
+  EXPECT_EQ(e.rejected[0].kind, "stuck");
+  EXPECT_EQ(e.rejected[0].column, log.joints.columns[static_cast<size_t>(c)]);
+  EXPECT_GT(e.ekf.stats.slip_not_used, 100);
+  const eval::TruthTrajectory truth(*s.log.truth);
+  const double ekf_clean =
+      *eval::evaluate(clean.ekf.trajectory, truth).get("final_position_error_m");
+  const double dr_clean = *eval::evaluate(clean.dr, truth).get("final_position_error_m");
+  // Five wheels of six carry the EKF (7 mm against 3 mm clean on 1 m, seed 1).
+  EXPECT_LT(*eval::evaluate(e.ekf.trajectory, truth).get("final_position_error_m"),
+            3 * ekf_clean + 2e-3);
+  EXPECT_LT(*eval::evaluate(e.dr, truth).get("final_position_error_m"), 1.5 * dr_clean);
+  // Without the screen dead reckoning averages the stuck wheel in (89 mm against 16 mm clean).
+  pipeline::PipelineConfig keep;
+  keep.drop_stuck_wheels = false;
+  EXPECT_GT(*eval::evaluate(pipeline::estimate(log, keep).dr, truth).get("final_position_error_m"),
+            2 * dr_clean);
+}
+
 }  // namespace
 }  // namespace traverse

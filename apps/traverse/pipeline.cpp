@@ -157,7 +157,7 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     for (const io::Finding& r : e.rejected) {
       if (r.file == f.file && r.t == f.t && r.kind == f.kind && r.column == f.column) {
         f.not_used = true;
-        f.message += " (sample not used)";
+        f.message += f.kind == "stuck" ? " (its slip rows not used there)" : " (sample not used)";
       }
     }
   }
@@ -183,10 +183,14 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     std::cout << "segments: " << e.segmentation.segments.size() << " ("
               << e.segmentation.rests.size() << " rest windows)\n"
               << "ekf: " << e.ekf.trajectory.nodes.size() << " nodes; updates: slip "
-              << s.slip_updates << " (" << s.slip_rejected << " gated out), sun " << s.sun_updates
-              << " (" << s.sun_rejected << " gated out), zero-velocity " << s.zero_velocity_updates
-              << ", zero-rate " << s.zero_rate_updates << ", bias " << s.bias_updates
-              << ", gravity " << s.gravity_updates << ", gyro " << s.gyro_updates << "\n";
+              << s.slip_updates << " (" << s.slip_rejected << " gated out"
+              << (s.slip_not_used > 0
+                      ? ", " + std::to_string(s.slip_not_used) + " not used: wheel outages"
+                      : std::string())
+              << "), sun " << s.sun_updates << " (" << s.sun_rejected
+              << " gated out), zero-velocity " << s.zero_velocity_updates << ", zero-rate "
+              << s.zero_rate_updates << ", bias " << s.bias_updates << ", gravity "
+              << s.gravity_updates << ", gyro " << s.gyro_updates << "\n";
     if (e.smoothed) {
       int converged = 0, fallback = 0;
       double solve = 0, cov = 0;

@@ -37,6 +37,8 @@ Trajectory deadReckoning(const io::TraverseLog& log, const Segmentation& seg,
   const Eigen::MatrixXd rates =
       rover::jointRates(std::span<const double>(j.t.data(), static_cast<size_t>(j.size())),
                         j.values, {log.config.joints.rate_filter_half_window});
+  // A rate is differenced over ±h samples: an outage reaches that far (as est::jointSamples).
+  const double margin = (log.config.joints.rate_filter_half_window + 1) * io::medianPeriod(j);
   Trajectory tr;
   tr.name = "dr";
   tr.nodes.resize(static_cast<size_t>(j.size()));
@@ -57,10 +59,16 @@ Trajectory deadReckoning(const io::TraverseLog& log, const Segmentation& seg,
     // Each wheel rolls at v_x − ω_z y_ICR (skid steering; y_ICR = the wheel's own y otherwise,
     // which the symmetric sides cancel): v_x = mean(r ψ̇ + ω_z (y + icr_offset_y)).
     const double rate = gyroZ(log.gyro, t) - bias;
-    double speed = 0.0;
-    for (const rover::Wheel& w : log.geometry.wheels)
-      speed += w.radius * rates(k, w.coord) + rate * w.icr_offset_y;
-    speed /= log.geometry.numWheels();
+    // The wheels in use (all of them, unless the screen found one stuck; then the others).
+    double speed = 0.0, used = 0.0;
+    for (int pass = 0; pass < 2 && used == 0.0; ++pass) {
+      for (int i = 0; i < log.geometry.numWheels(); ++i) {
+        if (pass == 0 && !log.wheelUsed(i, t, margin)) continue;
+        const rover::Wheel& w = log.geometry.wheels[static_cast<size_t>(i)];
+        speed += w.radius * rates(k, w.coord) + rate * w.icr_offset_y, used += 1.0;
+      }
+    }
+    speed /= used;
     if (k > 0) {  // trapezoid on heading and on the horizontal velocity
       const double dt = t - j.t[k - 1];
       const double yaw0 = yaw;

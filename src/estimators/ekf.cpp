@@ -426,6 +426,10 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
   const Twistd cmd_twist = rover::nominalBodyTwist(geometry_, in.v_cmd.x(), in.w_cmd.z());
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
   for (int i = 0; i < nw_; ++i) {
+    if (!js.wheelUsed(i)) {  // a wheel outage: no slip rows from this wheel
+      ++stats_.slip_not_used;
+      continue;
+    }
     // Re-linearise at the state the previous wheel's update left (sequential processing).
     Eigen::Matrix<double, 7, 1> s;
     s << v_now(), omega<double>(w_p_, b_, in), xi_[i];
@@ -658,6 +662,7 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
       s.joint_twist[i] = rover::wheelJointTwist(kin[i], q_dot);
       s.joint_twist_covariance[i] = kin[i].J * rate_var.asDiagonal() * kin[i].J.transpose();
       s.steering_variance[i] = geo.wheels[i].steered ? steer_var : 0.0;
+      s.used[i] = log.wheelUsed(i, s.t, (h + 1) * dt);
     }
   }
   return out;

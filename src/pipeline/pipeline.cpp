@@ -77,13 +77,33 @@ io::TraverseLog withoutSpikes(const io::TraverseLog& log, const io::Diagnostics&
   return out;
 }
 
+io::TraverseLog withoutStuckWheels(const io::TraverseLog& log, const io::Diagnostics& diagnostics,
+                                   std::vector<io::Finding>* rejected) {
+  io::TraverseLog out = log;
+  for (const io::Finding& f : diagnostics.findings) {
+    if (f.kind != "stuck" || f.file != "joints.csv") continue;
+    for (int i = 0; i < log.geometry.numWheels(); ++i) {
+      const int coord = log.geometry.wheels[static_cast<size_t>(i)].coord;
+      if (coord >= static_cast<int>(log.joints.columns.size()) ||
+          log.joints.columns[static_cast<size_t>(coord)] != f.column)
+        continue;
+      out.wheel_outages.push_back({i, f.t, f.t + f.duration_s});
+      if (rejected) rejected->push_back(f);
+    }
+  }
+  return out;
+}
+
 Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
                    const io::Diagnostics* diagnostics) {
   Estimates e;
-  const io::TraverseLog screened =
-      !config.reject_spikes ? input
-      : diagnostics         ? withoutSpikes(input, *diagnostics, &e.rejected)
-                            : withoutSpikes(input, io::diagnose(input), &e.rejected);
+  io::TraverseLog screened = input;
+  if (config.reject_spikes || config.drop_stuck_wheels) {
+    const io::Diagnostics found = diagnostics ? io::Diagnostics{} : io::diagnose(input);
+    const io::Diagnostics& d = diagnostics ? *diagnostics : found;
+    if (config.reject_spikes) screened = withoutSpikes(screened, d, &e.rejected);
+    if (config.drop_stuck_wheels) screened = withoutStuckWheels(screened, d, &e.rejected);
+  }
   const io::TraverseLog& log = screened;
   e.segmentation = est::segment(log, config.segmentation);
   e.init = est::initialState(log, e.segmentation, config.init);

@@ -70,6 +70,7 @@ struct EkfOptions {
 struct EkfStats {
   long propagations = 0;
   long slip_updates = 0, slip_rejected = 0;
+  long slip_not_used = 0;  ///< wheel slip updates skipped inside a wheel outage
   long sun_updates = 0, sun_rejected = 0;
   long gyro_updates = 0, zero_velocity_updates = 0, zero_rate_updates = 0, gravity_updates = 0;
   long bias_updates = 0;

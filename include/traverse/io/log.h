@@ -51,6 +51,22 @@ struct TraverseLog {
   /// Position-only truth: t,x,y,z,sx,sy,sz — the GPS antenna in the site frame and its 1σ per
   /// axis (m); the antenna's lever arm is RoverConfig::gps.
   std::optional<Stream> gps;
+  /// Stretches in which one wheel's drive angle is not to be used (the reader leaves this
+  /// empty; the pipeline's screen fills it from a `stuck` finding): its slip rows and its share
+  /// of dead reckoning's wheel average are left out there.
+  struct WheelOutage {
+    int wheel = 0;  ///< index into geometry.wheels
+    double t_start = 0.0, t_end = 0.0;
+  };
+  std::vector<WheelOutage> wheel_outages;
+  /// Whether wheel `wheel`'s drive angle may be used at t, `margin` seconds clear of every
+  /// outage (a rate differenced from neighbouring samples carries the outage that far).
+  bool wheelUsed(int wheel, double t, double margin = 0.0) const {
+    for (const WheelOutage& o : wheel_outages) {
+      if (o.wheel == wheel && t >= o.t_start - margin && t <= o.t_end + margin) return false;
+    }
+    return true;
+  }
 };
 
 /// Every stream of a log with its file name, in the contract's order (gyro, joints, sun, accel,

@@ -33,6 +33,9 @@ struct PipelineConfig {
   /// Give the estimators no sample that io::diagnose calls a spike (gyro.csv, accel.csv: the
   /// sample; joints.csv: the row) — see withoutSpikes.
   bool reject_spikes = true;
+  /// Use no drive angle of a wheel over a stretch io::diagnose calls `stuck` (the encoder holds
+  /// one reading while the other wheels turn) — see withoutStuckWheels.
+  bool drop_stuck_wheels = true;
   smoother::SmootherOptions smoother;
 };
 
@@ -42,7 +45,7 @@ struct Estimates {
   Trajectory dr;
   EkfResult ekf;
   std::optional<smoother::SmootherResult> smoothed;
-  std::vector<SegmentRow> segments;  ///< the smoother's bias and summary on motion rows
+  std::vector<SegmentRow> segments;   ///< the smoother's bias and summary on motion rows
   std::vector<io::Finding> rejected;  ///< the spikes whose samples the estimators were not given
 };
 
@@ -55,6 +58,15 @@ struct Estimates {
 /// sample or two is kept.
 io::TraverseLog withoutSpikes(const io::TraverseLog& log, const io::Diagnostics& diagnostics,
                               std::vector<io::Finding>* rejected = nullptr);
+
+/// The log with a wheel outage (TraverseLog::wheel_outages) for every `stuck` finding on a
+/// wheel's drive angle in joints.csv: over that stretch the EKF and the smoother take no slip
+/// rows from that wheel and dead reckoning averages the other wheels — an encoder that holds
+/// one reading while the rover drives would otherwise say that its wheel slides at the rover's
+/// speed, which the χ² gate lets through (one wheel of six pulls the velocity a sixth of the way,
+/// so its innovation stays under the gate). Those findings are appended to `rejected`.
+io::TraverseLog withoutStuckWheels(const io::TraverseLog& log, const io::Diagnostics& diagnostics,
+                                   std::vector<io::Finding>* rejected = nullptr);
 
 /// `diagnostics`: io::diagnose(log) when the caller has it already (it is computed otherwise).
 Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {},

@@ -35,11 +35,16 @@ struct JointSample {
   /// steering-angle variance of the wheel's chain (0 for unsteered wheels).
   std::vector<Mat6d> joint_twist_covariance;
   std::vector<double> steering_variance;
-  /// Sizes every per-wheel vector for `n` wheels.
+  /// Whether each wheel's drive angle may be used here (0 inside a wheel outage: a stuck
+  /// encoder); the estimators give such a wheel no slip rows.
+  std::vector<unsigned char> used;
+  bool wheelUsed(int i) const { return used.empty() || used[static_cast<size_t>(i)] != 0; }
+  /// Sizes every per-wheel vector for `n` wheels (every wheel used).
   void resize(int n) {
     const auto m = static_cast<size_t>(n);
     T_body_wheel.resize(m), joint_twist.resize(m), joint_twist_covariance.resize(m);
     steering_variance.assign(m, 0.0);
+    used.assign(m, 1);
   }
 };
 

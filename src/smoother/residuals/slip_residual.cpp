@@ -15,6 +15,7 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                       const NodeHandles& k) {
   const int nw = geometry.numWheels();
   for (int i = 0; i < nw; ++i) {
+    if (!js.wheelUsed(i)) continue;  // a wheel outage (a stuck encoder): no slip rows
     const double radius = geometry.wheels[i].radius;
     Eigen::Matrix<double, 4, 7> J;
     rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], seed.v_body,
