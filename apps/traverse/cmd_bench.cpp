@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "pipeline.h"
 #include "traverse/core/error.h"
+#include "traverse/estimators/trajectory.h"
 #include "traverse/eval/aggregate.h"
 #include "traverse/eval/metrics.h"
 #include "traverse/sim/simulator.h"
@@ -38,6 +39,13 @@ eval::MetricsReport oneRun(const sim::Scenario& sc, const std::filesystem::path&
   eval::MetricsReport report =
       eval::evaluateAll(sc.name + "#" + std::to_string(seed), trajectories, truth);
   setRestBiasMetric(report, e.segmentation, truth);
+  // NaN or inf anywhere in what `run` would write as NAME.csv (states, σ, covariance terms):
+  // a broken output must show even where the metrics do not look at it (faults, issue 15).
+  for (size_t i = 0; i < trajectories.size(); ++i) {
+    const io::Stream out = est::toStream(trajectories[i]);
+    const auto bad = (!out.values.array().isFinite()).count() + (!out.t.array().isFinite()).count();
+    report.estimators[i].metrics.set("nonfinite_values", static_cast<double>(bad));
+  }
   return report;
 }
 

@@ -1,6 +1,9 @@
 // Scenario YAML (datasets/scenarios/*.yaml) with --set overrides.
 #include "traverse/sim/scenario.h"
 
+#include <cmath>
+#include <set>
+
 #include <yaml-cpp/yaml.h>
 
 #include "io/yaml_reader.h"
@@ -177,6 +180,75 @@ void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
   s.gps_antenna_body_m = r.vec3(p, "sensors.gps", "antenna_body_m", s.gps_antenna_body_m);
 }
 
+/// [t, d] → one window.
+TimeWindow readWindow(const YamlReader& r, const YAML::Node& n, const std::string& key) {
+  if (!n.IsSequence() || n.size() != 2) r.fail(n, key, "expected [t_start_s, duration_s]");
+  double v[2];
+  for (int i = 0; i < 2; ++i) {
+    if (!n[i].IsScalar() || !YAML::convert<double>::decode(n[i], v[i]) || !std::isfinite(v[i]))
+      r.fail(n, key, "expected [t_start_s, duration_s], two finite numbers");
+  }
+  if (v[1] < 0) r.fail(n, key, "a window's duration must be ≥ 0");
+  return TimeWindow{v[0], v[1]};
+}
+
+/// [t, d] (one window) or [[t, d], …] (a list, possibly empty).
+std::vector<TimeWindow> readWindows(const YamlReader& r, const YAML::Node& map,
+                                    const std::string& prefix, const std::string& key) {
+  const YAML::Node n = map[key];
+  if (!n.IsDefined() || n.IsNull()) return {};
+  const std::string name = YamlReader::join(prefix, key);
+  if (!n.IsSequence()) r.fail(n, name, "expected [t_start_s, duration_s] or a list of them");
+  if (n.size() > 0 && n[0].IsScalar()) return {readWindow(r, n, name)};
+  std::vector<TimeWindow> out;
+  for (size_t i = 0; i < n.size(); ++i)
+    out.push_back(readWindow(r, n[i], name + "." + std::to_string(i)));
+  return out;
+}
+
+void readFaults(const YamlReader& r, const YAML::Node& root, FaultSpec& f) {
+  const YAML::Node n = r.section(root, "faults",
+                                 {"gap", "clock_offset", "gyro_spikes", "sun_dropout",
+                                  "sun_outliers", "stuck_wheel", "slip_burst", "no_accel"});
+  const std::set<std::string> streams = {"gyro", "joints", "sun", "accel", "cmd"};
+  const YAML::Node gap = r.section(n, "gap", streams);
+  const YAML::Node clock = r.section(n, "clock_offset", streams);
+  for (auto [name, s] : {std::pair<const char*, StreamFaults*>{"gyro", &f.gyro},
+                         {"joints", &f.joints},
+                         {"sun", &f.sun},
+                         {"accel", &f.accel},
+                         {"cmd", &f.cmd}}) {
+    s->gaps = readWindows(r, gap, "faults.gap", name);
+    s->clock_offset_s = r.number(clock, "faults.clock_offset", name, s->clock_offset_s, -1e4, 1e4);
+  }
+  const YAML::Node sp = r.section(n, "gyro_spikes", {"count", "magnitude_rad_s"});
+  f.gyro_spike_count = r.integer(sp, "faults.gyro_spikes", "count", f.gyro_spike_count, 0, 1000000);
+  f.gyro_spike_rad_s =
+      r.number(sp, "faults.gyro_spikes", "magnitude_rad_s", f.gyro_spike_rad_s, 0, 1e3);
+  const YAML::Node sd = r.section(n, "sun_dropout", {"windows", "fraction"});
+  f.sun_dropout_windows = readWindows(r, sd, "faults.sun_dropout", "windows");
+  f.sun_dropout_fraction =
+      r.number(sd, "faults.sun_dropout", "fraction", f.sun_dropout_fraction, 0, 1);
+  const YAML::Node so = r.section(n, "sun_outliers", {"count", "angle_rad"});
+  f.sun_outlier_count =
+      r.integer(so, "faults.sun_outliers", "count", f.sun_outlier_count, 0, 1000000);
+  f.sun_outlier_rad = r.number(so, "faults.sun_outliers", "angle_rad", f.sun_outlier_rad, 0, M_PI);
+  const YAML::Node sw = r.section(n, "stuck_wheel", {"wheel", "window"});
+  f.stuck_wheel = r.integer(sw, "faults.stuck_wheel", "wheel", f.stuck_wheel, 0, 64);
+  if (sw["window"] && !sw["window"].IsNull())
+    f.stuck_wheel_window = readWindow(r, sw["window"], "faults.stuck_wheel.window");
+  const YAML::Node sb =
+      r.section(n, "slip_burst", {"window", "wheel", "longitudinal_mps", "lateral_mps"});
+  if (sb["window"] && !sb["window"].IsNull())
+    f.slip_burst = readWindow(r, sb["window"], "faults.slip_burst.window");
+  f.slip_burst_wheel = r.integer(sb, "faults.slip_burst", "wheel", f.slip_burst_wheel, 0, 64);
+  f.slip_burst_longitudinal_mps =
+      r.number(sb, "faults.slip_burst", "longitudinal_mps", f.slip_burst_longitudinal_mps, -2, 2);
+  f.slip_burst_lateral_mps =
+      r.number(sb, "faults.slip_burst", "lateral_mps", f.slip_burst_lateral_mps, -2, 2);
+  f.no_accel = r.boolean(n, "faults", "no_accel", f.no_accel);
+}
+
 }  // namespace
 
 std::filesystem::path roverDirectory(const Scenario& sc,
@@ -209,7 +281,7 @@ Scenario loadScenario(const std::string& name_or_path, const std::filesystem::pa
   const YamlReader r(file.string());
   r.onlyKeys(root, "",
              {"name", "rover", "truth_rate_hz", "truth_output_hz", "gravity_mps2", "start",
-              "terrain", "path", "slip", "sensors"});
+              "terrain", "path", "slip", "sensors", "faults"});
   Scenario s;
   s.name = r.string(root, "", "name", file.stem().string());
   s.rover = r.string(root, "", "rover", s.rover);
@@ -230,6 +302,7 @@ Scenario loadScenario(const std::string& name_or_path, const std::filesystem::pa
   readTerrain(r, root, s.terrain);
   readSlip(r, root, s.slip);
   readSensors(r, root, s.sensors);
+  readFaults(r, root, s.faults);
   return s;
 }
 

@@ -35,10 +35,6 @@ io::Stream sampled(
   return s;
 }
 
-Vec3d sunAt(const SensorSpec& s, double t) {
-  return Eigen::AngleAxisd(s.sun_azimuth_rate_rad_s * t, Vec3d::UnitZ()) * s.sun_direction;
-}
-
 double maxSpeed(const Scenario& sc) {
   double v = 0.0;
   for (const Leg& l : sc.legs) {
@@ -60,7 +56,7 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
   if (s.sun_azimuth_rate_rad_s != 0.0) {
     // A table every 10 s over the traverse (the estimators interpolate it linearly).
     for (double t = 0.0; t <= t_end + 10.0; t += 10.0) {
-      const Vec3d d = sunAt(s, t);
+      const Vec3d d = sunDirectionAt(s, t);
       c.sun.azimuth_elevation.emplace_back(t, std::atan2(d.y(), d.x()), std::asin(d.z()));
     }
   }
@@ -91,6 +87,10 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
 }
 
 }  // namespace
+
+Vec3d sunDirectionAt(const SensorSpec& s, double t) {
+  return Eigen::AngleAxisd(s.sun_azimuth_rate_rad_s * t, Vec3d::UnitZ()) * s.sun_direction;
+}
 
 TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t) {
   const auto it = std::upper_bound(truth.begin(), truth.end(), t,
@@ -158,7 +158,7 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
     sensors::SunSensorGeometry sg{config.sun_sensor.R_body_sensor, 0.5 * s.sun_fov_rad};
     log.sun =
         sampled(truth, s.sun_rate_hz, {"s1", "s2", "valid"}, [&](const TruthSample& x, auto row) {
-          const Vec3d sun = sunAt(s, x.t);
+          const Vec3d sun = sunDirectionAt(s, x.t);
           const double n1 = sun_rng.normal(), n2 = sun_rng.normal();
           if (!sensors::sunInFieldOfView(x.q_site_body, sg, sun)) {
             row << 0.0, 0.0, 0.0;

@@ -48,13 +48,14 @@ std::shared_ptr<const Terrain> makeTerrain(const TerrainSpec& t, const Scenario&
 /// how fast the rover is moving relative to its cruise rate (no slip at rest).
 class SlipProcess {
  public:
-  SlipProcess(const SlipSpec& s, int wheels, double dt, uint64_t seed)
+  SlipProcess(const SlipSpec& s, const FaultSpec& f, int wheels, double dt, uint64_t seed)
       : s_(s),
+        f_(f),
         dt_(dt),
         rng_(seed, 101),
         burst_rng_(seed, 102),
         gm_(rover::WheelVectord::Zero(wheels)) {}
-  rover::WheelVectord step(double progress, double distance_step) {
+  rover::WheelVectord step(double t, double progress, double distance_step) {
     const double a = std::exp(-dt_ / s_.correlation_time_s);
     rover::WheelVectord out = rover::WheelVectord::Zero(gm_.size());
     if (s_.burst_rate_per_m > 0 && burst_rng_.uniform() < s_.burst_rate_per_m * distance_step)
@@ -66,12 +67,26 @@ class SlipProcess {
       out[i] = progress * (s_.longitudinal_white_mps * rng_.normal() + gm_[i] + burst);
     }
     lateral_ = a * lateral_ + std::sqrt(1 - a * a) * s_.lateral_correlated_mps * rng_.normal();
+    // The injected slip burst fault (FaultSpec): added only inside its window, so a scenario
+    // without it gives the same numbers bit for bit.
+    in_fault_burst_ = f_.slip_burst.contains(t);
+    if (in_fault_burst_) {
+      for (Eigen::Index i = 0; i < out.size(); ++i) {
+        if (f_.slip_burst_wheel == 0 || f_.slip_burst_wheel == i + 1)
+          out[i] += progress * f_.slip_burst_longitudinal_mps;
+      }
+    }
     return out;
   }
-  double lateral(double progress) const { return progress * lateral_; }
+  double lateral(double progress) const {
+    return in_fault_burst_ ? progress * (lateral_ + f_.slip_burst_lateral_mps)
+                           : progress * lateral_;
+  }
 
  private:
   SlipSpec s_;
+  FaultSpec f_;
+  bool in_fault_burst_ = false;
   double dt_;
   Rng rng_, burst_rng_;
   rover::WheelVectord gm_;
@@ -95,7 +110,7 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
     s.t = p.t;
     s.moving = p.moving;
     const double step = std::abs(p.speed_mps) * dt;
-    s.slip_longitudinal_mps = slip.step(p.progress, step);
+    s.slip_longitudinal_mps = slip.step(p.t, p.progress, step);
     lateral_offset += slip.lateral(p.progress) * dt * Vec2d(-std::sin(p.yaw), std::cos(p.yaw));
     // The path is that of the ground point below the turn centre, (x_c, 0, −h) in the body, h the
     // body origin's height above the ground at zero joint angles: a rover rolling or pitching
@@ -212,14 +227,16 @@ Simulation simulate(const Scenario& sc, const std::filesystem::path& rover_dir, 
   io::RoverConfig config = io::loadRoverConfig(rover_dir / "rover.yaml");
   const rover::RoverGeometry geo = io::loadRoverGeometry(rover_dir / config.urdf_file, config);
   const auto terrain = makeTerrain(sc.terrain, sc, seed);
+  checkFaults(sc, geo);
   const std::vector<PathSample> path = samplePath(sc, geo);
-  SlipProcess slip(sc.slip, geo.numWheels(), 1.0 / sc.truth_rate_hz, seed);
+  SlipProcess slip(sc.slip, sc.faults, geo.numWheels(), 1.0 / sc.truth_rate_hz, seed);
   Simulation sim;
   sim.truth = solvePoses(sc, geo, *terrain, path, slip);
   differentiate(sim.truth, geo);
   driveWheels(sim.truth, geo);
   gyroBias(sim.truth, sc.sensors, seed);
   sim.log = synthesizeLog(sc, config, geo, rover_dir, sim.truth, seed);
+  applyFaults(sc, sim.log.config, geo, sim.truth, sim.log, seed);
   return sim;
 }
 

@@ -78,6 +78,41 @@ struct SensorSpec {
   Vec3d gps_antenna_body_m = Vec3d::Zero();
 };
 
+/// A time window [t_start_s, t_start_s + duration_s) on the simulation clock; YAML [t, d].
+struct TimeWindow {
+  double t_start_s = 0.0;
+  double duration_s = 0.0;
+  bool contains(double t) const { return t >= t_start_s && t < t_start_s + duration_s; }
+  bool empty() const { return duration_s <= 0.0; }
+};
+
+/// Faults of one written sensor stream.
+struct StreamFaults {
+  std::vector<TimeWindow> gaps;  ///< rows stamped (true time) inside a window are not written
+  double clock_offset_s = 0.0;   ///< added to every stamp of the stream as written
+};
+
+/// Injected faults (issue 15), all off by default. Every fault but the slip burst is applied to
+/// the sensor streams after the simulation (truth untouched); the slip burst is in the physics.
+/// Random choices (spike and outlier rows, dropped sun readings) come from their own random
+/// streams of the run's seed, so the rest of the log is unchanged (docs/simulator.md).
+struct FaultSpec {
+  StreamFaults gyro, joints, sun, accel, cmd;
+  int gyro_spike_count = 0;       ///< single-sample glitches at random rows
+  double gyro_spike_rad_s = 0.5;  ///< added with a random sign (every column of the row)
+  std::vector<TimeWindow> sun_dropout_windows;  ///< readings marked invalid (s1 = s2 = 0)
+  double sun_dropout_fraction = 0.0;  ///< … and each other reading with this probability
+  int sun_outlier_count = 0;          ///< valid readings replaced by a wrong direction
+  double sun_outlier_rad = 0.5;       ///< the sun rotated by ± this about the site vertical
+  int stuck_wheel = 0;                ///< wheel 1..N whose drive encoder sticks; 0 = none
+  TimeWindow stuck_wheel_window;      ///< it reads constant here, then counts on from there
+  TimeWindow slip_burst;              ///< extra slip in the physics (true motion)
+  int slip_burst_wheel = 0;           ///< 1..N: that wheel only; 0 = every wheel
+  double slip_burst_longitudinal_mps = -0.02;  ///< < 0: the wheels turn more than the rover moves
+  double slip_burst_lateral_mps = 0.0;         ///< body transverse velocity (+ = left)
+  bool no_accel = false;                       ///< accel.csv not written
+};
+
 struct Scenario {
   std::string name;
   std::string rover = "rocky7";   ///< datasets/rovers/<rover>/ or a directory path
@@ -89,6 +124,7 @@ struct Scenario {
   TerrainSpec terrain;
   SlipSpec slip;
   SensorSpec sensors;
+  FaultSpec faults;
 };
 
 /// The rover directory a scenario names: a directory path, or datasets/rovers/<rover>. Throws
