@@ -92,9 +92,16 @@ TEST(EstEkf, TracksGyroBiasThroughRests) {
 TEST(EstEkf, GatesSunOutliers) {
   sim::Simulation s = simulate("straight-1m", {});
   s.log.sun->values(40, 0) += 0.3;  // ~17° of a jump in one reading
-  const Estimates gated = estimate(s.log);
-  EXPECT_EQ(gated.ekf.stats.sun_rejected, 1);
-  PipelineConfig no_gate;
+  // The spike screen removes it before any estimator sees it …
+  const Estimates screened = estimate(s.log);
+  EXPECT_EQ(screened.ekf.stats.sun_rejected, 0);
+  ASSERT_EQ(screened.rejected.size(), 1U);
+  EXPECT_DOUBLE_EQ(screened.rejected[0].t, s.log.sun->t[40]);
+  // … and without the screen the EKF's χ² gate rejects it.
+  PipelineConfig unscreened;
+  unscreened.reject_spikes = false;
+  EXPECT_EQ(estimate(s.log, unscreened).ekf.stats.sun_rejected, 1);
+  PipelineConfig no_gate = unscreened;
   no_gate.ekf.gating = false;
   EXPECT_EQ(estimate(s.log, no_gate).ekf.stats.sun_rejected, 0);
 }

@@ -367,7 +367,28 @@ Diagnostics diagnose(const TraverseLog& log, const DiagnosticsOptions& o) {
     if (is_joints) diagnoseSpikes(*stream, file, jointNoise(log, *stream, log.config), o, &out);
     if (log.accel && stream == &*log.accel)
       diagnoseSpikes(*stream, file, {log.config.accel.noise_mps2}, o, &out);
-    if (log.sun && stream == &*log.sun) diagnoseSun(*stream, log.config, &out);
+    if (log.sun && stream == &*log.sun) {
+      diagnoseSun(*stream, log.config, &out);
+      // Spikes among the valid readings (s1, s2): an outlier that a rest or a straight leg's
+      // neighbours all deny. A reading the EKF meets before the heading is pinned would pass
+      // its χ² gate and then have the good readings gated out.
+      if (stream->has("valid") && stream->has("s1") && stream->has("s2")) {
+        const auto valid = stream->channel("valid");
+        Stream v;
+        v.columns = {"s1", "s2"};
+        const Eigen::Index n = (valid.array() == 1.0).count();
+        v.t.resize(n);
+        v.values.resize(n, 2);
+        for (Eigen::Index k = 0, i = 0; k < stream->size(); ++k) {
+          if (valid[k] != 1.0) continue;
+          v.t[i] = stream->t[k];
+          v.values(i, 0) = stream->values(k, stream->col("s1"));
+          v.values(i, 1) = stream->values(k, stream->col("s2"));
+          ++i;
+        }
+        diagnoseSpikes(v, file, {log.config.sun_sensor.noise}, o, &out);
+      }
+    }
     std::stable_sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(),
                      [](const Finding& a, const Finding& b) { return a.t < b.t; });
   }

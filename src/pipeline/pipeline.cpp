@@ -60,12 +60,13 @@ io::Stream withoutRows(const io::Stream& s, const std::set<double>& times) {
 io::TraverseLog withoutSpikes(const io::TraverseLog& log, const io::Diagnostics& diagnostics,
                               std::vector<io::Finding>* rejected) {
   io::TraverseLog out = log;
-  std::set<double> gyro, accel, joints;
+  std::set<double> gyro, accel, joints, sun;
   for (const io::Finding& f : diagnostics.findings) {
     if (f.kind != "spike") continue;
     std::set<double>* times = f.file == "gyro.csv"     ? &gyro
                               : f.file == "accel.csv"  ? &accel
                               : f.file == "joints.csv" ? &joints
+                              : f.file == "sun.csv"    ? &sun
                                                        : nullptr;
     if (times == nullptr) continue;
     times->insert(f.t);  // f.t is the sample's own stamp, as read
@@ -74,6 +75,7 @@ io::TraverseLog withoutSpikes(const io::TraverseLog& log, const io::Diagnostics&
   if (!gyro.empty()) out.gyro = withoutRows(log.gyro, gyro);
   if (!joints.empty()) out.joints = withoutRows(log.joints, joints);
   if (!accel.empty() && log.accel) out.accel = withoutRows(*log.accel, accel);
+  if (!sun.empty() && log.sun) out.sun = withoutRows(*log.sun, sun);
   return out;
 }
 
