@@ -3,8 +3,9 @@
 //   bits 0-2: gyro, joints, sun, accel, cmd, truth, gps (7: the generic estimator-output spec)
 //   bit 3:    joints.csv / truth.csv for the bundled rocky7 rover (its columns, its 6 wheels)
 //   bit 4:    --skip-bad-rows
-// Bad input must be an InputError; anything else (another exception, a sanitizer report) is a
-// crash. A file that parses must write back (formatCsv) and read back to the same bits.
+// Bad input must be an InputError whose message is one printable line; anything else (another
+// exception, a sanitizer report) is a crash. A file that parses must write back (formatCsv) and
+// read back to the same bits.
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -55,8 +56,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   io::Stream s;
   try {
     s = io::parseCsv(text, file, spec, options, &report);
-  } catch (const InputError&) {
-    return 0;  // the documented answer to bad input
+  } catch (const InputError& e) {
+    // The documented answer to bad input: one printable line (bytes quoted as \xNN).
+    for (const char c : std::string_view(e.what())) {
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) std::abort();
+    }
+    return 0;
   }
   // What the reader accepts, the writer writes and the reader reads back bit for bit.
   const io::Stream back = io::parseCsv(io::formatCsv(s), file, io::StreamSpec{});
