@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs the libFuzzer targets of the `fuzz` preset (docs/testing.md), each for a bounded time, on
-# a temporary copy of its seed corpus fuzz/corpus/<target>/ (the repository is not modified)
+# a temporary copy of its seed corpus fuzz/corpus/<target>/ and the inputs of crashes fixed
+# before, fuzz/regressions/<target>/ (the repository is not modified),
 # with its dictionary. Fails on the first crash, sanitizer report or unexpected exception; the
 # input that caused it is kept in build/fuzz/artifacts/.
 #
@@ -21,12 +22,15 @@ for t in "${targets[@]}"; do
   exe=build/fuzz/fuzz/$t
   [ -x "$exe" ] || { echo "run_fuzzers: $exe not built (cmake --build --preset fuzz)" >&2; exit 1; }
   cp -r "fuzz/corpus/$t" "$work/$t"
+  # The inputs of crashes found and fixed (docs/results.md) are seeds too: they stay fixed.
+  [ -d "fuzz/regressions/$t" ] && cp "fuzz/regressions/$t"/* "$work/$t/"
   echo "== $t: ${seconds}s on $(ls "$work/$t" | wc -l) seed files" >&2
   # shellcheck disable=SC2086
   "$exe" "$work/$t" -dict="fuzz/$t.dict" -max_total_time="$seconds" -timeout=30 \
     -print_final_stats=1 -artifact_prefix="$artifacts/$t-" ${FUZZ_ARGS:-} 2>"$work/$t.log" || {
-    tail -n 60 "$work/$t.log" >&2
-    echo "run_fuzzers: $t failed; the input is in $artifacts/" >&2
+    cp "$work/$t.log" "$artifacts/$t.log"
+    grep -v "^INFO:\|^#[0-9]" "$work/$t.log" | head -n 80 >&2
+    echo "run_fuzzers: $t failed; the input and the whole log are in $artifacts/" >&2
     exit 1
   }
   grep -E "^stat::(number_of_executed_units|average_exec_per_sec|peak_rss_mb)|^Done" \

@@ -144,6 +144,15 @@ TEST(RoverMultiWheel, DefaultColumnsAreTheJointsInDocumentOrder) {
   EXPECT_THAT(g.columnNames(), ElementsAre("zeta", "alpha", "mid"));
 }
 
+// A text ending in a truncated UTF-8 sequence is unreadable XML, and TinyXML (urdfdom's parser)
+// must not read past its end (fuzz_urdf found it reading up to 3 bytes past the terminator;
+// this test shows the error, ASan in the fuzzer the over-read).
+TEST(RoverMultiWheel, UrdfEndingInATruncatedUtf8SequenceIsUnreadable) {
+  const std::string xml =
+      urdfWithWheel("<cylinder radius='0.1' length='0.1'/>", "continuous") + "<o\xC8";
+  EXPECT_THROW(io::parseRoverGeometry(xml, io::RoverConfig{}, "r.urdf"), InputError);
+}
+
 // Hand-checked skid steering: turning in place at ω with the sides rolling at their centres of
 // rotation (r ψ̇ = −ω y_ICR), the slip constraint of every wheel is its nominal slip: the
 // longitudinal ω (y_ICR − y) and the lateral scrub ω x of the front and rear wheels.

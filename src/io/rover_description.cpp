@@ -96,7 +96,13 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
                                         const std::string& source) {
   // urdfdom reports parse problems through console_bridge; we report them as one InputError.
   console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
-  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  // urdfdom parses the text's c_str() with TinyXML 2.6.2, which steps over a UTF-8 lead byte's
+  // whole sequence: a text ending in a truncated sequence (a lone 0xC8 in the last tag) made it
+  // read up to 3 bytes past the terminating NUL, out of the string (a heap over-read found by
+  // fuzz_urdf). Zero bytes after the terminator stop it there.
+  std::string padded = xml;
+  padded.append(4, '\0');
+  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(padded);
   if (!model) throw InputError(source, 0, "unreadable URDF (urdfdom could not parse it)");
   const auto fail = [&](const std::string& what) { throw InputError(source, 0, what); };
   for (const auto& [name, j] : model->joints_) {
