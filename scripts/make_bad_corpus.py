@@ -157,6 +157,9 @@ case("yaml-wrong-type", E + "rover.yaml:18: key 'gravity_mps2': expected a numbe
      rover_yaml=yaml_sub(r"^gravity_mps2: .*$", "gravity_mps2: strong"))
 case("yaml-negative-noise", E + "rover.yaml:21: key 'gyro.noise_rad_s': value -0.001 out of range",
      rover_yaml=yaml_sub(r"^  noise_rad_s: .*$", "  noise_rad_s: -0.001"))
+# A list as a key: valid YAML, no rover.yaml key (found by fuzz_rover_yaml: it aborted the run).
+case("yaml-key-not-text", E + "rover.yaml:21: key 'gyro': a key must be plain text",
+     rover_yaml=yaml_sub(r"^  noise_rad_s:", "  [noise_rad_s]:"))
 case("yaml-format-version", E + "rover.yaml:2: key 'format': unsupported format version 2",
      rover_yaml=yaml_sub(r"^format: 1$", "format: 2"))
 case("urdf-unreadable-xml", E + "rover.urdf: unreadable URDF",

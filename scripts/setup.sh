@@ -5,7 +5,8 @@ set -euo pipefail
 pkgs=(build-essential cmake ninja-build pkg-config
       libceres-dev libeigen3-dev libsuitesparse-dev libcli11-dev
       libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev liburdfdom-dev
-      python3-h5py python3-numpy)
+      python3-h5py python3-numpy
+      clang libclang-rt-14-dev)  # the fuzz preset: clang and its libFuzzer (.ci/run runs it)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -92,6 +92,14 @@ TEST_F(IoRoverConfig, SunTableInterpolates) {
 TEST_F(IoRoverConfig, WrongFormatVersion) {
   expectError("format: 2\n", 1, "unsupported format version 2");
 }
+// A list or mapping as a key is valid YAML but no key of rover.yaml: an InputError (found by
+// fuzz_rover_yaml: yaml-cpp's TypedBadConversion escaped the reader and `traverse run` aborted).
+TEST_F(IoRoverConfig, KeyThatIsNotText) {
+  expectError("format: 1\n? [gyro]\n: 1\n", 2, "key '(top level)': a key must be plain text");
+  expectError("format: 1\ngyro:\n  {a: 1}: 2\n", 3, "key 'gyro': a key must be plain text");
+  expectError("format: 1\njoints:\n  [psi1]: wheel_1\n", 3,
+              "key 'joints': a key must be plain text");
+}
 TEST_F(IoRoverConfig, MissingFormat) {
   expectError("name: x\n", 0, "'format'");
 }

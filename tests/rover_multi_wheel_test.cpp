@@ -120,6 +120,39 @@ TEST(RoverMultiWheel, UrdfErrorsNameTheJoint) {
   }
 }
 
+// The default joints.csv columns are the movable joints in the URDF's document order, read
+// from the text itself: `name` anywhere in the tag, either quote, spaces around '=', comments
+// skipped. A joint tag of 200 kB is read too (std::regex, used before, recursed once per
+// character and overflowed the stack: `traverse run` died with SIGSEGV).
+TEST(RoverMultiWheel, DefaultColumnsAreTheJointsInDocumentOrder) {
+  const std::string huge(200000, 'a');
+  const std::string wheel =
+      "<collision><geometry><cylinder radius='0.1' length='0.1'/></geometry></collision>";
+  const std::string xml =
+      "<robot name='r'><link name='base_link'/><link name='w1'>" + wheel +
+      "</link><link name='w2'>" + wheel + "</link><link name='w3'>" + wheel +
+      "</link><!-- <joint name='commented'/> -->"
+      "<joint type='continuous' note='" +
+      huge +
+      "' name = \"zeta\"><parent link='base_link'/>"
+      "<child link='w1'/><origin xyz='0 0.2 0'/><axis xyz='0 1 0'/></joint>"
+      "<joint\n  name='alpha' type='continuous'><parent link='base_link'/><child link='w2'/>"
+      "<origin xyz='0 -0.2 0'/><axis xyz='0 1 0'/></joint>"
+      "<joint myname='x' name='mid' type='continuous'><parent link='base_link'/>"
+      "<child link='w3'/><origin xyz='0.3 0 0'/><axis xyz='0 1 0'/></joint></robot>";
+  const rover::RoverGeometry g = io::parseRoverGeometry(xml, io::RoverConfig{}, "r.urdf");
+  EXPECT_THAT(g.columnNames(), ElementsAre("zeta", "alpha", "mid"));
+}
+
+// A text ending in a truncated UTF-8 sequence is unreadable XML, and TinyXML (urdfdom's parser)
+// must not read past its end (fuzz_urdf found it reading up to 3 bytes past the terminator;
+// this test shows the error, ASan in the fuzzer the over-read).
+TEST(RoverMultiWheel, UrdfEndingInATruncatedUtf8SequenceIsUnreadable) {
+  const std::string xml =
+      urdfWithWheel("<cylinder radius='0.1' length='0.1'/>", "continuous") + "<o\xC8";
+  EXPECT_THROW(io::parseRoverGeometry(xml, io::RoverConfig{}, "r.urdf"), InputError);
+}
+
 // Hand-checked skid steering: turning in place at ω with the sides rolling at their centres of
 // rotation (r ψ̇ = −ω y_ICR), the slip constraint of every wheel is its nominal slip: the
 // longitudinal ω (y_ICR − y) and the lateral scrub ω x of the front and rear wheels.

@@ -127,6 +127,14 @@ Names checkHeader(const Names& header, const StreamSpec& spec, const std::string
   std::set<std::string> seen;
   for (const std::string& c : header) {
     if (c.empty()) fail("empty column name in header (expected " + describe(spec) + ")");
+    // A lone '\r' or a tab inside a name: such a header could not be written back, and every
+    // message naming the column would print the raw byte.
+    if (std::any_of(c.begin(), c.end(), [](char ch) {
+          const auto u = static_cast<unsigned char>(ch);
+          return u < 0x20 || u == 0x7F;
+        })) {
+      fail("control character in column name " + quoted(std::string_view(c)));
+    }
     if (!seen.insert(c).second) fail("duplicate column '" + c + "' in header");
   }
   const Names values(header.begin() + 1, header.end());

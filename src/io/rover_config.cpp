@@ -173,9 +173,12 @@ Vec3d SunConfig::directionAt(double t) const {
 RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   const std::string file = yaml_file.string();
   if (!std::filesystem::exists(yaml_file)) throw InputError(file, 0, "required file is missing");
+  return parseRoverConfig(readInputFile(yaml_file), file);
+}
+
+RoverConfig parseRoverConfig(const std::string& text, const std::string& file) {
   YAML::Node root;
   try {
-    const std::string text = readInputFile(yaml_file);
     rejectBinary(text, file);
     root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
@@ -198,9 +201,8 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   if (const YAML::Node j = root["joints"]; j.IsDefined() && !j.IsNull()) {
     if (!j.IsMap()) r.fail(j, "joints", "expected a mapping column -> URDF joint name");
     for (const auto& kv : j) {
-      if (!kv.second.IsScalar())
-        r.fail(kv.second, "joints." + kv.first.as<std::string>(), "expected a string");
-      const std::string column = kv.first.as<std::string>();
+      const std::string column = r.key(kv.first, "joints");
+      if (!kv.second.IsScalar()) r.fail(kv.second, "joints." + column, "expected a string");
       for (const auto& [seen, joint] : c.joint_names) {
         if (seen == column) r.fail(kv.first, "joints." + column, "column listed twice");
       }

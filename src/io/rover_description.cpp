@@ -1,11 +1,13 @@
 #include "traverse/io/rover_description.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <deque>
 #include <fstream>
 #include <map>
-#include <regex>
 #include <sstream>
+#include <string_view>
 
 #include <console_bridge/console.h>
 #include <urdf_parser/urdf_parser.h>
@@ -44,18 +46,42 @@ bool hasCylinder(const urdf::LinkConstSharedPtr& link) {
 }
 
 /// Joint names in the order the URDF text declares them (urdfdom keeps its joints in a map
-/// sorted by name): the `name` attribute of every <joint> element outside comments.
+/// sorted by name): the `name` attribute of every <joint> element outside comments — what the
+/// regex <joint\b[^>]*?\bname\s*=\s*["']([^"']*)["'] finds, scanned by hand in linear time
+/// (libstdc++'s std::regex recurses once per character of a match: a joint tag of 100 kB
+/// overflowed the stack).
 std::vector<std::string> jointsInDocumentOrder(const std::string& xml) {
   std::string text = xml;
   for (size_t a = text.find("<!--"); a != std::string::npos; a = text.find("<!--", a)) {
     const size_t b = text.find("-->", a);
     text.erase(a, b == std::string::npos ? std::string::npos : b + 3 - a);
   }
-  static const std::regex kJoint(R"(<joint\b[^>]*?\bname\s*=\s*["']([^"']*)["'])");
+  const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+  const auto space = [](char c) { return c == ' ' || (c >= '\t' && c <= '\r'); };
+  const size_t n = text.size();
   std::vector<std::string> out;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), kJoint);
-       it != std::sregex_iterator(); ++it) {
-    out.push_back((*it)[1].str());
+  size_t pos = 0;
+  size_t gt = 0;  // the first '>' at or after pos (n: none)
+  while ((pos = text.find("<joint", pos)) != std::string::npos) {
+    pos += 6;
+    if (pos < n && word(text[pos])) continue;  // <jointX…: another element
+    if (gt < pos) gt = std::min(text.find('>', pos), n);
+    const std::string_view tag(text.data(), gt);  // `name` must start before the tag's '>'
+    for (size_t q = tag.find("name", pos); q != tag.npos; q = tag.find("name", q + 1)) {
+      if (word(text[q - 1])) continue;  // …name inside another attribute's name
+      size_t p = q + 4;
+      while (p < n && space(text[p])) ++p;
+      if (p == n || text[p] != '=') continue;
+      ++p;
+      while (p < n && space(text[p])) ++p;
+      if (p == n || (text[p] != '"' && text[p] != '\'')) continue;
+      const size_t value = p + 1;
+      const size_t close = text.find_first_of("\"'", value);
+      if (close == std::string::npos) continue;
+      out.push_back(text.substr(value, close - value));
+      pos = close + 1;
+      break;
+    }
   }
   return out;
 }
@@ -70,7 +96,13 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
                                         const std::string& source) {
   // urdfdom reports parse problems through console_bridge; we report them as one InputError.
   console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
-  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  // urdfdom parses the text's c_str() with TinyXML 2.6.2, which steps over a UTF-8 lead byte's
+  // whole sequence: a text ending in a truncated sequence (a lone 0xC8 in the last tag) made it
+  // read up to 3 bytes past the terminating NUL, out of the string (a heap over-read found by
+  // fuzz_urdf). Zero bytes after the terminator stop it there.
+  std::string padded = xml;
+  padded.append(4, '\0');
+  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(padded);
   if (!model) throw InputError(source, 0, "unreadable URDF (urdfdom could not parse it)");
   const auto fail = [&](const std::string& what) { throw InputError(source, 0, what); };
   for (const auto& [name, j] : model->joints_) {

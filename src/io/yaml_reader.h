@@ -24,12 +24,21 @@ class YamlReader {
     throw InputError(file_, line, "key '" + key + "': " + what);
   }
 
+  /// A mapping's key as text. YAML allows a list or a mapping as a key (`? [a, b]: 1`), which
+  /// yaml-cpp cannot convert to a string (it threw YAML::TypedBadConversion past the reader).
+  std::string key(const YAML::Node& k, const std::string& prefix) const {
+    if (!k.IsScalar() && !k.IsNull())
+      fail(k, prefix.empty() ? "(top level)" : prefix,
+           "a key must be plain text, not a list or mapping");
+    return k.as<std::string>();
+  }
+
   /// Checks that a map holds only the given keys (typos are errors, not silent defaults).
   void onlyKeys(const YAML::Node& map, const std::string& prefix,
                 const std::set<std::string>& keys) const {
     if (!map.IsMap()) fail(map, prefix, "expected a mapping");
     for (const auto& kv : map) {
-      const std::string k = kv.first.as<std::string>();
+      const std::string k = key(kv.first, prefix);
       if (!keys.count(k)) fail(kv.first, prefix.empty() ? k : prefix + "." + k, "unknown key");
     }
   }

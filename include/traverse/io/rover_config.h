@@ -121,6 +121,8 @@ struct RoverConfig {
 
 /// Reads and validates rover.yaml (errors: InputError naming file and key).
 RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file);
+/// Same, from rover.yaml text in memory (`file` names it in errors).
+RoverConfig parseRoverConfig(const std::string& yaml_text, const std::string& file);
 /// Writes a rover.yaml that loadRoverConfig reads back to the same values.
 void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& config);
 
