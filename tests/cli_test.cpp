@@ -135,6 +135,29 @@ TEST(Cli, RunWarnsOfARestThatIsNotOne) {
   std::filesystem::remove_all(dir);
 }
 
+// straight-1m with 15 s of gyro.csv missing while it drives: exit 0, a warning naming stream,
+// time and kind, and the smoother segment that spans the gap is marked on stdout.
+TEST(Cli, RunWarnsOfAGyroGapAndMarksTheSegment) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_gyro_gap";
+  std::filesystem::remove_all(dir);
+  std::filesystem::copy(bundled("straight-1m"), dir);
+  std::ifstream in(dir / "gyro.csv");
+  std::string line, text;
+  std::getline(in, line);
+  text = line + "\n";
+  while (std::getline(in, line)) {
+    const double t = std::stod(line.substr(0, line.find(',')));
+    if (!(t > 5.0 && t < 20.0)) text += line + "\n";
+  }
+  in.close();
+  std::ofstream(dir / "gyro.csv") << text;
+  const Result r = run("run " + dir.string() + " -o " + (dir / "out").string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("warning: gyro.csv: gap of 15.0 s at t=5.0"));
+  EXPECT_THAT(r.out, HasSubstr("spans a gyro.csv gap of 15.0 s at t=5.0"));
+  std::filesystem::remove_all(dir);
+}
+
 // A log without truth still gets metrics.json: the diagnostics, nothing to evaluate. A gap the
 // run warns of is the one the file lists.
 TEST(Cli, FilterWithoutTruthWritesTheDiagnostics) {

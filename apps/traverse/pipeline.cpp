@@ -207,6 +207,14 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
         if (g.status == smoother::SegmentStatus::kFallbackEkf)
           std::cout << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
                     << " s) kept the EKF's states: " << g.message << "\n";
+        // A segment spanning a gap is marked: there its states rest on the process model alone.
+        for (const io::Finding& f : diagnostics.findings) {
+          if (f.kind == "gap" && f.t >= g.t_start && f.t < g.t_end &&
+              (f.file == "gyro.csv" || f.file == "joints.csv" || f.file == "accel.csv"))
+            std::cout << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
+                      << " s) spans a " << f.file << " " << f.message
+                      << " (its states there rest on the process model)\n";
+        }
       }
     }
     std::cout << "wrote " << o.out_dir << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
