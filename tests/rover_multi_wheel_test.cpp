@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
 
 #include "support/jacobian_check.h"
@@ -151,6 +153,34 @@ TEST(RoverMultiWheel, UrdfEndingInATruncatedUtf8SequenceIsUnreadable) {
   const std::string xml =
       urdfWithWheel("<cylinder radius='0.1' length='0.1'/>", "continuous") + "<o\xC8";
   EXPECT_THROW(io::parseRoverGeometry(xml, io::RoverConfig{}, "r.urdf"), InputError);
+}
+
+// A joint mapped to a joints.csv column that the walk from the root link never reaches (a
+// chain urdfdom keeps outside the tree) is bad input naming the joint — it threw
+// std::out_of_range out of the reader (found by fuzz_urdf; the input is
+// fuzz/regressions/fuzz_urdf/fuzz_urdf-crash-d7f9…, rocky7's URDF with a joint renamed).
+TEST(RoverMultiWheel, EveryFuzzRegressionIsAnInputErrorOrAGeometry) {
+  const std::filesystem::path dir =
+      std::filesystem::path(testing::sourceDir()) / "fuzz" / "regressions" / "fuzz_urdf";
+  const io::RoverConfig configs[] = {
+      io::RoverConfig{},
+      io::loadRoverConfig(testing::sourceDir() + "/datasets/rovers/rocky7/rover.yaml"),
+      io::loadRoverConfig(testing::sourceDir() + "/datasets/rovers/pathfinder/rover.yaml")};
+  int files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ++files;
+    for (const io::RoverConfig& config : configs) {
+      try {
+        (void)io::parseRoverGeometry(text, config, "rover.urdf");
+      } catch (const InputError&) {
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << entry.path() << ": " << e.what();
+      }
+    }
+  }
+  EXPECT_GE(files, 2);
 }
 
 // Hand-checked skid steering: turning in place at ω with the sides rolling at their centres of

@@ -185,6 +185,7 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       joint_index[j->name] = static_cast<int>(geo.joints.size());
       geo.joints.push_back(kj);
       const urdf::LinkConstSharedPtr child = model->getLink(j->child_link_name);
+      if (!child) fail("joint '" + j->name + "': child link '" + j->child_link_name + "' missing");
       link_parent[child->name] = joint_index[j->name];
       queue.push_back(child);
     }
@@ -198,7 +199,15 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
     const urdf::LinkConstSharedPtr link = model->getLink(j->child_link_name);
     const bool wheel =
         j->type == urdf::Joint::CONTINUOUS || (link->child_joints.empty() && hasCylinder(link));
-    const int d = joint_index.at(c.joint);
+    // A joint that the walk from the root never reached (urdfdom builds its tree from the
+    // links' parents, so a second chain, or a joint whose parent link is carried twice, can
+    // stay outside it): bad input, not a crash (found by fuzz_urdf).
+    const auto reached = joint_index.find(c.joint);
+    if (reached == joint_index.end()) {
+      fail("joint '" + c.joint + "' is not connected to the root link '" + model->getRoot()->name +
+           "'");
+    }
+    const int d = reached->second;
     if (wheel) {
       if ((geo.joints[d].axis - Vec3d::UnitY()).norm() > 1e-9) {
         fail("wheel drive joint '" + c.joint + "' must rotate about +y of its frame (axis 0 1 0)");
