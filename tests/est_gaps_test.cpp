@@ -106,6 +106,54 @@ TEST(EstGaps, AJointsGapIsNotRest) {
   EXPECT_NEAR(seg.segments.back().t_start, 26.7, 0.5);
 }
 
+// A 6 s joints gap while driving: the estimators still write a node every median joint interval
+// inside it (unmeasured joint samples: no joint twist, no slip rows), so the smoother's states
+// follow the gyro and accelerometer across the gap and their σ grows with it instead of one long
+// node interval that hides it.
+TEST(EstGaps, AJointsGapKeepsNodesWhoseSigmaGrows) {
+  const sim::Simulation s = simulate("straight-1m");
+  io::TraverseLog log = s.log;
+  log.joints = withoutSpan(log.joints, 8.0, 14.0);
+  const std::vector<rover::JointSample> js = est::jointSamples(log);
+  // Hand count: the rows at 8.0 and 14.0 remain; 8.05, 8.10, …, 13.95 are inserted (119).
+  ASSERT_EQ(js.size(), static_cast<size_t>(s.log.joints.size()));
+  long inserted = 0;
+  for (size_t k = 0; k < js.size(); ++k) {
+    EXPECT_NEAR(js[k].t, s.log.joints.t[static_cast<Eigen::Index>(k)], 1e-9);
+    const bool inside = js[k].t > 8.0 + 1e-9 && js[k].t < 14.0 - 1e-9;
+    EXPECT_EQ(js[k].measured, !inside) << "t = " << js[k].t;
+    if (inside) {
+      ++inserted;
+      for (int i = 0; i < log.geometry.numWheels(); ++i) {
+        EXPECT_FALSE(js[k].wheelUsed(i));
+        EXPECT_EQ(js[k].joint_twist[static_cast<size_t>(i)].norm(), 0.0);
+      }
+    }
+  }
+  EXPECT_EQ(inserted, 119);
+  pipeline::PipelineConfig config;
+  config.smooth = true;
+  const pipeline::Estimates e = pipeline::estimate(log, config);
+  ASSERT_TRUE(e.smoothed);
+  const auto at = [](const est::Trajectory& tr, double t) {
+    for (const est::TrajectoryNode& n : tr.nodes) {
+      if (std::abs(n.t - t) < 1e-6) return n;
+    }
+    ADD_FAILURE() << tr.name << " has no node at t = " << t;
+    return est::TrajectoryNode{};
+  };
+  for (const est::Trajectory* tr : {&e.ekf.trajectory, &e.smoothed->trajectory}) {
+    ASSERT_EQ(tr->nodes.size(), js.size()) << tr->name;
+    const double before = at(*tr, 8.0).covariance.topLeftCorner<3, 3>().trace();
+    const double middle = at(*tr, 11.0).covariance.topLeftCorner<3, 3>().trace();
+    EXPECT_GT(middle, 2.0 * before) << tr->name;
+  }
+  // Honest across the gap: the smoother's horizontal error inside it within 3σ.
+  const eval::TruthTrajectory truth(*s.log.truth);
+  const eval::Metrics m = eval::evaluate(e.smoothed->trajectory, truth);
+  EXPECT_LT(*m.get("position_rmse_over_sigma"), 1.6);
+}
+
 // A 6 s accelerometer gap while driving: the O-4 velocity is a random walk across it (not the
 // interpolated specific force), so neither estimator loses the distance.
 TEST(EstGaps, AnAccelerometerGapIsARandomWalk) {

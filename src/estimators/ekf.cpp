@@ -418,6 +418,7 @@ Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample
 }
 
 void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
+  if (!js.measured) return;  // inside a gap of joints.csv: nothing to update with
   const bool accel_driven =
       options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
   const auto v_now = [&] { return accel_driven ? v_p_ : velocity<double>(v_p_, in); };
@@ -649,20 +650,50 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log) {
   }
   const double steer_var = s_steer * s_steer * rover::smoothedValueVarianceFactor(hs);
   const int nw = geo.numWheels();
-  std::vector<JointSample> out(static_cast<size_t>(j.size()));
+  // Inside a gap of joints.csv (io::TimeGaps) the trajectory is still wanted: unmeasured
+  // samples at the stream's median period, so the EKF writes nodes there and the smoother's
+  // states (and σ) follow the gyro and accelerometer across the gap instead of one long
+  // interval that hides it. Their frames come from the angles interpolated across the gap
+  // (the contact geometry changes slowly); they carry no joint twist and no slip rows.
+  const io::TimeGaps gaps(j);
+  std::vector<JointSample> out;
+  out.reserve(static_cast<size_t>(j.size()));
+  const auto frames = [&](const rover::JointVectord& q, JointSample& s) {
+    const auto kin = rover::forwardKinematics<double>(geo, q);
+    for (int i = 0; i < nw; ++i) s.T_body_wheel[i] = kin[i].T_body_wheel;
+    return kin;
+  };
+  size_t next_gap = 0;
   for (Eigen::Index k = 0; k < j.size(); ++k) {
     const rover::JointVectord q = angles.row(k).transpose();
     const rover::JointVectord q_dot = rates.row(k).transpose();
-    const auto kin = rover::forwardKinematics<double>(geo, q);
-    JointSample& s = out[static_cast<size_t>(k)];
+    JointSample& s = out.emplace_back();
     s.t = j.t[k];
     s.resize(nw);
+    const auto kin = frames(q, s);
     for (int i = 0; i < nw; ++i) {
-      s.T_body_wheel[i] = kin[i].T_body_wheel;
       s.joint_twist[i] = rover::wheelJointTwist(kin[i], q_dot);
       s.joint_twist_covariance[i] = kin[i].J * rate_var.asDiagonal() * kin[i].J.transpose();
       s.steering_variance[i] = geo.wheels[i].steered ? steer_var : 0.0;
       s.used[i] = log.wheelUsed(i, s.t, (h + 1) * dt);
+    }
+    if (next_gap < gaps.spans().size() && gaps.spans()[next_gap].first == j.t[k] &&
+        k + 1 < j.size() && dt > 0.0) {
+      const double t0 = j.t[k], t1 = j.t[k + 1];
+      const rover::JointVectord q1 = angles.row(k + 1).transpose();
+      for (double tv = t0 + dt; tv < t1 - 0.5 * dt; tv += dt) {
+        JointSample& v = out.emplace_back();
+        v.t = tv;
+        v.resize(nw);
+        v.measured = false;
+        std::fill(v.used.begin(), v.used.end(), 0);
+        frames(q + (tv - t0) / (t1 - t0) * (q1 - q), v);
+        for (int i = 0; i < nw; ++i) {
+          v.joint_twist[i].setZero();
+          v.joint_twist_covariance[i].setZero();
+        }
+      }
+      ++next_gap;
     }
   }
   return out;
@@ -757,7 +788,7 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
     while (log.sun && is < log.sun->size() && log.sun->values(is, 2) < 0.5)
       ++is;  // valid = 0: ignored
     const double tg = ig < log.gyro.size() ? log.gyro.t[ig] : inf;
-    const double tj = ij < log.joints.size() ? log.joints.t[ij] : inf;
+    const double tj = ij < std::ssize(joints) ? joints[static_cast<size_t>(ij)].t : inf;
     const double ts = log.sun && options.use_sun && is < log.sun->size() ? log.sun->t[is] : inf;
     const double tn = std::min({tg, tj, ts});
     if (tn == inf) break;

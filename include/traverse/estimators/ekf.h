@@ -206,7 +206,7 @@ class Ekf {
 };
 
 struct EkfResult {
-  Trajectory trajectory;  ///< one node per joint sample
+  Trajectory trajectory;  ///< one node per jointSamples entry
   EkfStats stats;
   EkfOptions::VelocityModel velocity = EkfOptions::VelocityModel::kPerturbation;  ///< as run
   /// What the run should tell its user (one line each, without "warning: "): most updates of
@@ -228,7 +228,9 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
                  const EkfOptions& options = {});
 
 /// Wheel frames and joint twists for every joint sample (joint rates by smoothing and
-/// differencing, K §3).
+/// differencing, K §3), in time order; inside each gap of joints.csv (io::TimeGaps), samples at
+/// the stream's median period with `measured` false (no joint twist, no slip rows; frames from
+/// the angles interpolated across the gap), so a trajectory node exists there too.
 std::vector<JointSample> jointSamples(const io::TraverseLog& log);
 
 /// Residual r = nominal − t of wheel i's four slip rows (K-17, K §2.3.4) at s = (v, ω, ξ_i) and

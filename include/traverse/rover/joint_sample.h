@@ -38,6 +38,11 @@ struct JointSample {
   /// Whether each wheel's drive angle may be used here (0 inside a wheel outage: a stuck
   /// encoder); the estimators give such a wheel no slip rows.
   std::vector<unsigned char> used;
+  /// False for a sample the estimators insert inside a gap of joints.csv (est::jointSamples):
+  /// a node where the trajectory is wanted but nothing was measured — frames from the angles
+  /// interpolated across the gap, no joint twists, no slip rows. The state there is carried by
+  /// the gyro and accelerometer alone, so its covariance grows with the gap.
+  bool measured = true;
   bool wheelUsed(int i) const { return used.empty() || used[static_cast<size_t>(i)] != 0; }
   /// Sizes every per-wheel vector for `n` wheels (every wheel used).
   void resize(int n) {

@@ -32,8 +32,8 @@ struct SmootherData {
   SmootherData(const io::TraverseLog& log, const est::Trajectory& seed,
                const SmootherOptions& options);
   const io::TraverseLog& log;
-  const est::Trajectory& seed;                   ///< one node per joint sample
-  std::vector<rover::JointSample> joints;        ///< wheel frames and joint twists per joint sample
+  const est::Trajectory& seed;                   ///< one node per est::jointSamples entry
+  std::vector<rover::JointSample> joints;        ///< est::jointSamples(log)
   std::vector<size_t> nodes;                     ///< joint-sample indices that are smoother nodes
   Eigen::Matrix<double, Eigen::Dynamic, 6> cmd;  ///< commanded (v, ω) per node (zero without)
   sensors::GyroAxes gyro_axes = sensors::GyroAxes::headingOnly();  ///< B_g of the log's gyro
