@@ -158,6 +158,27 @@ TEST(Cli, RunWarnsOfAGyroGapAndMarksTheSegment) {
   std::filesystem::remove_all(dir);
 }
 
+// A joints clock 0.2 s late: found, said on stderr, counted in metrics.json, and removed;
+// --no-clock-align keeps the stamps and says nothing.
+TEST(Cli, RunFindsAndRemovesAJointsClockOffset) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_clock";
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(run("simulate straight-1m --set faults.clock_offset.joints=0.2 -o " + dir.string()).code,
+            0);
+  const Result r = run("filter " + dir.string() + " -o " + (dir / "out").string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("warning: joints.csv: clock offset of +0.2"));
+  EXPECT_THAT(r.err, HasSubstr("its stamps moved by -0.2"));
+  std::ifstream f(dir / "out" / "metrics.json");
+  const std::string json(std::istreambuf_iterator<char>(f), {});
+  EXPECT_THAT(json, HasSubstr("\"clock_offset\": 1"));
+  const Result kept =
+      run("filter --no-clock-align " + dir.string() + " -o " + (dir / "kept").string());
+  EXPECT_EQ(kept.code, 0) << kept.err;
+  EXPECT_THAT(kept.err, Not(HasSubstr("clock offset")));
+  std::filesystem::remove_all(dir);
+}
+
 // A log without truth still gets metrics.json: the diagnostics, nothing to evaluate. A gap the
 // run warns of is the one the file lists.
 TEST(Cli, FilterWithoutTruthWritesTheDiagnostics) {

@@ -1,5 +1,7 @@
 #include "pipeline.h"
 
+#include <algorithm>
+#include <cstdio>
 #include <iostream>
 
 #include "traverse/eval/metrics.h"
@@ -32,6 +34,13 @@ void addPipelineOptions(CLI::App& cmd, PipelineOptions& o) {
                "Accept every sun and slip innovation (no chi-square gate)");
   cmd.add_flag("--pitch-projection", o.pitch_projection,
                "Dead reckoning: project wheel speed by the pitch");
+  cmd.add_flag("--no-clock-align", o.no_clock_align,
+               "Keep joints.csv's stamps as logged (no clock offset estimated against the gyro "
+               "and accelerometer)");
+  cmd.add_option("--joints-clock-offset", o.joints_clock_offset_s,
+                 "joints.csv's known clock offset in seconds (+: its stamps late); removed "
+                 "instead of estimating one")
+      ->check(CLI::Range(-60.0, 60.0));
 }
 
 void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
@@ -80,6 +89,8 @@ pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   c.ekf.use_slip = !o.no_slip;
   c.ekf.gating = !o.no_gating;
   c.dead_reckoning.pitch_projection = o.pitch_projection;
+  c.align_joints_clock = !o.no_clock_align;
+  c.joints_clock_offset_s = o.joints_clock_offset_s;
   auto& so = c.smoother;
   so.node_period_s = o.node_period_s;
   so.bias_model = o.bias_model == "random-walk" ? smoother::SmootherOptions::BiasModel::kRandomWalk
@@ -153,6 +164,19 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   pipeline::PipelineConfig config = pipelineConfig(o);
   config.smooth = smooth;
   pipeline::Estimates e = pipeline::estimate(log, config, &diagnostics);
+  if (e.joints_shift_s != 0.0) {  // a finding like the others: printed and counted
+    io::Finding f;
+    f.file = "joints.csv", f.kind = "clock_offset", f.t = log.joints.t[0];
+    f.column = "t", f.value = -e.joints_shift_s;  // metrics.json: the offset, s
+    char shift[64];
+    std::snprintf(shift, sizeof shift, "its stamps moved by %+.3f s", e.joints_shift_s);
+    f.message = (config.joints_clock_offset_s ? std::string("clock offset given on the command line")
+                                              : e.joints_clock.message()) +
+                ": " + shift + " (--no-clock-align keeps them)";
+    auto at = std::find_if(diagnostics.findings.begin(), diagnostics.findings.end(),
+                           [](const io::Finding& g) { return g.file == "joints.csv"; });
+    diagnostics.findings.insert(at, f);
+  }
   for (io::Finding& f : diagnostics.findings) {
     for (const io::Finding& r : e.rejected) {
       if (r.file == f.file && r.t == f.t && r.kind == f.kind && r.column == f.column) {

@@ -7,6 +7,8 @@
 
 #include "commands.h"
 #include "traverse/eval/metrics.h"
+#include <optional>
+
 #include "traverse/pipeline/pipeline.h"
 
 namespace traverse::app {
@@ -18,6 +20,8 @@ struct PipelineOptions {
   std::string attitude_model = "gyro-driven";
   std::string velocity_model = "auto";
   bool no_sun = false, no_slip = false, no_gating = false, pitch_projection = false;
+  bool no_clock_align = false;
+  std::optional<double> joints_clock_offset_s;
   // Smoother (smooth, run).
   double node_period_s = 0.0;
   std::string bias_model = "constant";

@@ -106,6 +106,13 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
     if (config.reject_spikes) screened = withoutSpikes(screened, d, &e.rejected);
     if (config.drop_stuck_wheels) screened = withoutStuckWheels(screened, d, &e.rejected);
   }
+  if (config.joints_clock_offset_s) {
+    e.joints_shift_s = -*config.joints_clock_offset_s;
+  } else if (config.align_joints_clock) {
+    e.joints_clock = est::estimateJointsClockOffset(screened);
+    if (e.joints_clock.significant) e.joints_shift_s = -e.joints_clock.offset_s;
+  }
+  if (e.joints_shift_s != 0.0) screened = est::withJointsShifted(screened, -e.joints_shift_s);
   const io::TraverseLog& log = screened;
   e.segmentation = est::segment(log, config.segmentation);
   e.init = est::initialState(log, e.segmentation, config.init);

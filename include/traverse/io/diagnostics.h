@@ -30,6 +30,8 @@
 //   sun_invalid    every sun reading has valid = 0
 //   sun_out_of_view
 //                  valid readings whose fish-eye radius puts the sun outside the field of view
+//   clock_offset   joints.csv's clock against the gyro and accelerometer (found by the pipeline,
+//                  est::estimateJointsClockOffset, not by diagnose; the stamps are then moved)
 #pragma once
 
 #include <map>
@@ -67,7 +69,8 @@ struct Finding {
 /// Every kind, in the order metrics.json lists them.
 inline const std::vector<std::string> kFindingKinds = {
     "gap",       "time_order", "rate_change", "no_overlap",  "late_start",
-    "early_end", "stuck",      "spike",       "sun_invalid", "sun_out_of_view"};
+    "early_end", "stuck",      "spike",       "sun_invalid", "sun_out_of_view",
+    "clock_offset"};
 
 struct Diagnostics {
   std::vector<Finding> findings;  ///< by stream in the contract's file order, then by time

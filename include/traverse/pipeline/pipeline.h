@@ -6,6 +6,7 @@
 #include <optional>
 #include <vector>
 
+#include "traverse/estimators/clock_offset.h"
 #include "traverse/estimators/dead_reckoning.h"
 #include "traverse/estimators/ekf.h"
 #include "traverse/estimators/segments_output.h"
@@ -14,6 +15,7 @@
 
 namespace traverse::pipeline {
 
+using est::ClockOffset;
 using est::DeadReckoningOptions;
 using est::EkfOptions;
 using est::EkfResult;
@@ -36,6 +38,13 @@ struct PipelineConfig {
   /// Use no drive angle of a wheel over a stretch io::diagnose calls `stuck` (the encoder holds
   /// one reading while the other wheels turn) — see withoutStuckWheels.
   bool drop_stuck_wheels = true;
+  /// Estimate joints.csv's clock offset against the gyro and accelerometer
+  /// (est::estimateJointsClockOffset) and, when it is significant, move the joint stamps onto
+  /// the inertial clock before estimating.
+  bool align_joints_clock = true;
+  /// A known offset of joints.csv's clock (s, + = its stamps late) to remove instead of
+  /// estimating one.
+  std::optional<double> joints_clock_offset_s;
   smoother::SmootherOptions smoother;
 };
 
@@ -47,6 +56,10 @@ struct Estimates {
   std::optional<smoother::SmootherResult> smoothed;
   std::vector<SegmentRow> segments;   ///< the smoother's bias and summary on motion rows
   std::vector<io::Finding> rejected;  ///< the spikes whose samples the estimators were not given
+  /// joints.csv's clock offset as estimated (when align_joints_clock), and the shift applied to
+  /// its stamps (−offset; 0 when none was).
+  ClockOffset joints_clock;
+  double joints_shift_s = 0.0;
 };
 
 /// The log without its spikes (step 0 of estimate): every gyro.csv and accel.csv sample and

@@ -1,0 +1,121 @@
+// joints.csv's clock against the inertial streams (issue 15, "a clock offset between streams"):
+// found from the data by cross-correlating what the wheels say of the yaw rate and the forward
+// acceleration with the gyro and the accelerometer, reported, and removed before estimating.
+#include <gtest/gtest.h>
+
+#include "support/jacobian_check.h"
+#include "traverse/estimators/clock_offset.h"
+#include "traverse/eval/metrics.h"
+#include "traverse/pipeline/pipeline.h"
+#include "traverse/sim/simulator.h"
+
+namespace traverse {
+namespace {
+
+std::filesystem::path datasets() {
+  return std::filesystem::path(testing::sourceDir()) / "datasets";
+}
+
+sim::Simulation simulate(const std::string& scenario, uint64_t seed,
+                         const std::vector<std::string>& overrides = {}) {
+  return sim::simulate(sim::loadScenario(scenario, datasets(), overrides),
+                       datasets() / "rovers" / "rocky7", seed);
+}
+
+std::string joints(double offset) {
+  return "faults.clock_offset.joints=" + std::to_string(offset);
+}
+
+// straight-1m: no turn, so only the forward acceleration (the start and the stop) carries the
+// offset; a late and an early joints clock, two seeds each. The correlation's scatter here is
+// about 0.04 s (docs/results.md).
+TEST(EstClockOffset, FindsTheJointsOffsetOnAStraightDrive) {
+  for (const double offset : {0.3, -0.25}) {
+    for (const uint64_t seed : {1, 2}) {
+      const sim::Simulation s = simulate("straight-1m", seed, {joints(offset)});
+      const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
+      EXPECT_TRUE(c.significant) << "offset " << offset << " seed " << seed;
+      EXPECT_NEAR(c.offset_s, offset, 0.1) << "seed " << seed;
+      EXPECT_EQ(c.signals, "forward acceleration") << c.message();
+      EXPECT_GT(c.correlation, c.correlation_at_zero);
+    }
+  }
+}
+
+// A turn in place without the accelerometer: the yaw rate alone.
+TEST(EstClockOffset, FindsItFromTheYawRateAlone) {
+  const sim::Simulation s =
+      simulate("turn-in-place-360", 1, {joints(0.4), "faults.no_accel=true"});
+  ASSERT_FALSE(s.log.accel);
+  const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
+  EXPECT_TRUE(c.significant) << c.message();
+  EXPECT_NEAR(c.offset_s, 0.4, 0.08);  // a 3 s ramp in and out: a broad peak
+  EXPECT_EQ(c.signals, "yaw rate");
+}
+
+// Clean logs: nothing reported (straight-1m seed 2 is the worst seen: 0.076 s). slow-onset's
+// speed profile is smooth from end to end: it may hold too little change to correlate at all.
+TEST(EstClockOffset, ReportsNothingOnCleanLogs) {
+  for (const std::string scenario : {"straight-1m", "turn-in-place-360", "slow-onset"}) {
+    for (const uint64_t seed : {1, 2, 3}) {
+      if (scenario == "slow-onset" && seed > 1) break;  // a long log: one seed
+      const sim::Simulation s = simulate(scenario, seed);
+      const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
+      EXPECT_TRUE(c.estimated || scenario == "slow-onset") << scenario;
+      EXPECT_FALSE(c.significant) << scenario << " seed " << seed << ": " << c.message();
+      EXPECT_LT(std::abs(c.offset_s), 2.0 * io::medianPeriod(s.log.joints)) << scenario;
+    }
+  }
+}
+
+// A log in which the rover never moves holds no timing information: nothing is estimated.
+TEST(EstClockOffset, NothingToCorrelateAtRest) {
+  const sim::Simulation s = simulate("straight-1m", 1, {joints(0.2)});
+  io::TraverseLog log = s.log;
+  const auto head = [](io::Stream& st, double t_end) {
+    Eigen::Index n = 0;
+    while (n < st.size() && st.t[n] < t_end) ++n;
+    st.t.conservativeResize(n);
+    st.values.conservativeResize(n, Eigen::NoChange);
+  };
+  head(log.joints, 3.0), head(log.gyro, 3.0), head(*log.accel, 3.0);  // straight-1m rests 5 s
+  const est::ClockOffset c = est::estimateJointsClockOffset(log);
+  EXPECT_FALSE(c.significant) << c.message();
+}
+
+// The shift moves the joint stamps and the wheel outages, nothing else.
+TEST(EstClockOffset, ShiftMovesTheJointStampsOnly) {
+  const sim::Simulation s = simulate("straight-1m", 1);
+  io::TraverseLog log = s.log;
+  log.wheel_outages.push_back({2, 10.0, 12.0});
+  const io::TraverseLog shifted = est::withJointsShifted(log, 0.25);
+  EXPECT_DOUBLE_EQ(shifted.joints.t[7], log.joints.t[7] - 0.25);
+  EXPECT_TRUE(shifted.joints.values == log.joints.values);
+  EXPECT_TRUE(shifted.gyro.t == log.gyro.t);
+  EXPECT_TRUE(shifted.accel->t == log.accel->t);
+  EXPECT_DOUBLE_EQ(shifted.wheel_outages[0].t_start, 9.75);
+  EXPECT_DOUBLE_EQ(shifted.wheel_outages[0].t_end, 11.75);
+}
+
+// End to end: with the offset removed the EKF's position NEES is back under the 3 of a
+// consistent 3-dof estimate (1.2 against 38 kept; the clean log's is 0.32 — the 0.03 s left of the
+// offset still shows against that); kept, it is not.
+TEST(EstClockOffset, AlignedEstimatesAreConsistent) {
+  const sim::Simulation s = simulate("straight-1m", 1, {joints(0.2)});
+  const eval::TruthTrajectory truth(*s.log.truth);
+  const auto nees = [&](const pipeline::Estimates& e) {
+    return *eval::evaluate(e.ekf.trajectory, truth).get("nees_position_mean");
+  };
+  const pipeline::Estimates aligned = pipeline::estimate(s.log);
+  EXPECT_NEAR(aligned.joints_shift_s, -0.2, 0.05);
+  EXPECT_LT(nees(aligned), 3.0);
+  pipeline::PipelineConfig keep;
+  keep.align_joints_clock = false;
+  EXPECT_GT(nees(pipeline::estimate(s.log, keep)), 10.0);
+  pipeline::PipelineConfig given;  // a known offset is removed as given
+  given.joints_clock_offset_s = 0.2;
+  EXPECT_DOUBLE_EQ(pipeline::estimate(s.log, given).joints_shift_s, -0.2);
+}
+
+}  // namespace
+}  // namespace traverse
