@@ -56,15 +56,15 @@ TEST(EstClockOffset, FindsItFromTheYawRateAlone) {
 // Clean logs: nothing reported (straight-1m seed 2 is the worst seen: 0.076 s). slow-onset's
 // speed profile is smooth from end to end: it may hold too little change to correlate at all.
 TEST(EstClockOffset, ReportsNothingOnCleanLogs) {
-  for (const std::string scenario : {"straight-1m", "turn-in-place-360", "slow-onset"}) {
-    for (const uint64_t seed : {1, 2, 3}) {
-      if (scenario == "slow-onset" && seed > 1) break;  // a long log: one seed
-      const sim::Simulation s = simulate(scenario, seed);
-      const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
-      EXPECT_TRUE(c.estimated || scenario == "slow-onset") << scenario;
-      EXPECT_FALSE(c.significant) << scenario << " seed " << seed << ": " << c.message();
-      EXPECT_LT(std::abs(c.offset_s), 2.0 * io::medianPeriod(s.log.joints)) << scenario;
-    }
+  // (scenario, seed): straight-1m's three seeds hold its worst case; one each of the longer logs.
+  for (const auto& [scenario, seed] : std::vector<std::pair<std::string, uint64_t>>{
+           {"straight-1m", 1}, {"straight-1m", 2}, {"straight-1m", 3},
+           {"turn-in-place-360", 2}, {"slow-onset", 1}}) {
+    const sim::Simulation s = simulate(scenario, seed);
+    const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
+    EXPECT_TRUE(c.estimated || scenario == "slow-onset") << scenario;
+    EXPECT_FALSE(c.significant) << scenario << " seed " << seed << ": " << c.message();
+    EXPECT_LT(std::abs(c.offset_s), 2.0 * io::medianPeriod(s.log.joints)) << scenario;
   }
 }
 
