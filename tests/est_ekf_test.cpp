@@ -2,9 +2,9 @@
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
 
+#include "support/bundled.h"
 #include "support/jacobian_check.h"
 #include "traverse/eval/metrics.h"
-#include "traverse/io/log_reader.h"
 #include "traverse/pipeline/pipeline.h"
 #include "traverse/sim/simulator.h"
 
@@ -21,6 +21,8 @@ std::filesystem::path datasets() {
 
 sim::Simulation simulate(const std::string& scenario, std::vector<std::string> overrides,
                          uint64_t seed = 1) {
+  if ((scenario == "straight-1m" || scenario == "multi-stop") && seed == 1 && overrides.empty())
+    return testing::bundledSimulation(scenario);
   return sim::simulate(sim::loadScenario(scenario, datasets(), overrides),
                        datasets() / "rovers" / "rocky7", seed);
 }
@@ -122,11 +124,10 @@ TEST(EstEkf, AlternativeProcessModels) {
 
 // A gyro glitch (one sample 2 rad/s off while the rover drives) is found by the diagnostics
 // and never reaches the estimators: same segmentation, yaw as good as without it.
-// The bundled multi-stop log (datasets/logs/multi-stop: `traverse simulate multi-stop`, seed 1)
-// read from disk: simulating its 781 s here took 41 of this test's 51 s (and 5 min under ASan).
+// On the bundled multi-stop log (support/bundled.h): simulating its 781 s here took 41 of this
+// test's 51 s (and 5 min under ASan).
 TEST(EstEkf, GyroSpikeIsRejectedAndCounted) {
-  sim::Simulation s;
-  s.log = io::readLog(datasets() / "logs" / "multi-stop");
+  const sim::Simulation s = simulate("multi-stop", {});
   ASSERT_TRUE(s.log.truth);
   sim::Simulation spiked = s;
   const Eigen::Index k = spiked.log.gyro.size() / 2;
