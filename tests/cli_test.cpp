@@ -163,8 +163,8 @@ TEST(Cli, RunWarnsOfAGyroGapAndMarksTheSegment) {
 TEST(Cli, RunFindsAndRemovesAJointsClockOffset) {
   const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_clock";
   std::filesystem::remove_all(dir);
-  ASSERT_EQ(run("simulate straight-1m --set faults.clock_offset.joints=0.2 -o " + dir.string()).code,
-            0);
+  ASSERT_EQ(
+      run("simulate straight-1m --set faults.clock_offset.joints=0.2 -o " + dir.string()).code, 0);
   const Result r = run("filter " + dir.string() + " -o " + (dir / "out").string());
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_THAT(r.err, HasSubstr("warning: joints.csv: clock offset of +0.2"));

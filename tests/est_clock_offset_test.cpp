@@ -44,8 +44,7 @@ TEST(EstClockOffset, FindsTheJointsOffsetOnAStraightDrive) {
 
 // A turn in place without the accelerometer: the yaw rate alone.
 TEST(EstClockOffset, FindsItFromTheYawRateAlone) {
-  const sim::Simulation s =
-      simulate("turn-in-place-360", 1, {joints(0.4), "faults.no_accel=true"});
+  const sim::Simulation s = simulate("turn-in-place-360", 1, {joints(0.4), "faults.no_accel=true"});
   ASSERT_FALSE(s.log.accel);
   const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
   EXPECT_TRUE(c.significant) << c.message();
@@ -57,9 +56,12 @@ TEST(EstClockOffset, FindsItFromTheYawRateAlone) {
 // speed profile is smooth from end to end: it may hold too little change to correlate at all.
 TEST(EstClockOffset, ReportsNothingOnCleanLogs) {
   // (scenario, seed): straight-1m's three seeds hold its worst case; one each of the longer logs.
-  for (const auto& [scenario, seed] : std::vector<std::pair<std::string, uint64_t>>{
-           {"straight-1m", 1}, {"straight-1m", 2}, {"straight-1m", 3},
-           {"turn-in-place-360", 2}, {"slow-onset", 1}}) {
+  for (const auto& [scenario, seed] :
+       std::vector<std::pair<std::string, uint64_t>>{{"straight-1m", 1},
+                                                     {"straight-1m", 2},
+                                                     {"straight-1m", 3},
+                                                     {"turn-in-place-360", 2},
+                                                     {"slow-onset", 1}}) {
     const sim::Simulation s = simulate(scenario, seed);
     const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
     EXPECT_TRUE(c.estimated || scenario == "slow-onset") << scenario;

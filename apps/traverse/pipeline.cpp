@@ -170,9 +170,10 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     f.column = "t", f.value = -e.joints_shift_s;  // metrics.json: the offset, s
     char shift[64];
     std::snprintf(shift, sizeof shift, "its stamps moved by %+.3f s", e.joints_shift_s);
-    f.message = (config.joints_clock_offset_s ? std::string("clock offset given on the command line")
-                                              : e.joints_clock.message()) +
-                ": " + shift + " (--no-clock-align keeps them)";
+    f.message =
+        (config.joints_clock_offset_s ? std::string("clock offset given on the command line")
+                                      : e.joints_clock.message()) +
+        ": " + shift + " (--no-clock-align keeps them)";
     auto at = std::find_if(diagnostics.findings.begin(), diagnostics.findings.end(),
                            [](const io::Finding& g) { return g.file == "joints.csv"; });
     diagnostics.findings.insert(at, f);

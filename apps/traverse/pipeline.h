@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
+#include <optional>
 #include "commands.h"
 #include "traverse/eval/metrics.h"
-#include <optional>
 
 #include "traverse/pipeline/pipeline.h"
 

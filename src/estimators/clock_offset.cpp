@@ -85,8 +85,7 @@ std::string ClockOffset::message() const {
   return buf;
 }
 
-ClockOffset estimateJointsClockOffset(const io::TraverseLog& log,
-                                      const ClockOffsetOptions& o) {
+ClockOffset estimateJointsClockOffset(const io::TraverseLog& log, const ClockOffsetOptions& o) {
   ClockOffset out;
   if (log.joints.size() < 10 || log.gyro.size() < 10) return out;
   const double dt = io::medianPeriod(log.joints);
@@ -106,8 +105,8 @@ ClockOffset estimateJointsClockOffset(const io::TraverseLog& log,
       const auto k = static_cast<size_t>(i);
       const rover::Wheel& w = geo.wheels[k];
       const auto row = [&](const Vec3d& v, const Vec3d& om) {
-        return rover::slipConstraint<double>(js.T_body_wheel[k], w.radius, js.joint_twist[k], v,
-                                             om, 0.0)[0];
+        return rover::slipConstraint<double>(js.T_body_wheel[k], w.radius, js.joint_twist[k], v, om,
+                                             0.0)[0];
       };
       const double c = row(Vec3d::Zero(), Vec3d::Zero());
       const Eigen::Vector2d a(row(Vec3d::UnitX(), Vec3d::Zero()) - c,

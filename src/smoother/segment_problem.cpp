@@ -56,7 +56,8 @@ SmootherData::SmootherData(const io::TraverseLog& log, const est::Trajectory& se
                            const SmootherOptions& options)
     : log(log), seed(seed), joints(est::jointSamples(log)) {
   if (seed.nodes.size() != joints.size())
-    throw std::invalid_argument("smoother: the seed trajectory needs one node per est::jointSamples entry");
+    throw std::invalid_argument(
+        "smoother: the seed trajectory needs one node per est::jointSamples entry");
   for (size_t k = 0; k < joints.size(); ++k) {
     if (nodes.empty() || k + 1 == joints.size() ||
         joints[k].t - joints[nodes.back()].t >= options.node_period_s - 1e-9)

@@ -34,12 +34,12 @@ struct ClockOffsetOptions {
 };
 
 struct ClockOffset {
-  bool estimated = false;     ///< some signal held enough motion to correlate
-  bool significant = false;   ///< the offset is reported and corrected
-  double offset_s = 0.0;      ///< joints.csv's stamps minus the inertial clock (+: joints late)
-  double correlation = 0.0;   ///< combined correlation at the correlation's offset
+  bool estimated = false;    ///< some signal held enough motion to correlate
+  bool significant = false;  ///< the offset is reported and corrected
+  double offset_s = 0.0;     ///< joints.csv's stamps minus the inertial clock (+: joints late)
+  double correlation = 0.0;  ///< combined correlation at the correlation's offset
   double correlation_at_zero = 0.0;
-  std::string signals;        ///< the signals used: "yaw rate", "forward speed"
+  std::string signals;  ///< the signals used: "yaw rate", "forward speed"
   /// "clock offset of +0.200 s against gyro.csv/accel.csv (...)": the warning's text.
   std::string message() const;
 };

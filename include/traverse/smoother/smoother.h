@@ -120,7 +120,8 @@ struct SmootherResult {
   std::vector<SegmentSummary> segments;
 };
 
-/// Smooths a log, seeded by the EKF trajectory (one node per est::jointSamples entry, as runEkf gives).
+/// Smooths a log, seeded by the EKF trajectory (one node per est::jointSamples entry, as runEkf
+/// gives).
 SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
                       const est::Trajectory& ekf, const SmootherOptions& options = {});
 
