@@ -144,13 +144,17 @@ def main():
     ap.add_argument("--jobs", type=int, default=2, help="parallel runs inside the one bench process")
     ap.add_argument("--out", default=os.path.join(ROOT, "results", "faults"))
     ap.add_argument("--only", help="run only cases whose name contains this")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scenario override added to every case (e.g. rover=DIR, a rover.yaml "
+                         "variant)")
     ap.add_argument("--no-bench", action="store_true",
                     help="reuse OUT's bench JSON files (the seed-1 NaN check is redone)")
     args = ap.parse_args()
     binary = os.environ.get("TRAVERSE", os.path.join(ROOT, "build", "release", "traverse"))
     out = os.path.join(args.out, args.scenario)
     os.makedirs(out, exist_ok=True)
-    cases = [c for c in CASES[args.scenario] if not args.only or args.only in c[0] or c[0] == "clean"]
+    cases = [(n, sets + args.set) for n, sets in CASES[args.scenario]
+             if not args.only or args.only in n or n == "clean"]
 
     results = []
     t0 = time.time()

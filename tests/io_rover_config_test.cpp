@@ -55,6 +55,20 @@ TEST_F(IoRoverConfig, BundledRocky7Loads) {
   EXPECT_LT((c.sun.direction_site - Vec3d(-1, 1, 1).normalized()).norm(), 1e-15);
 }
 
+TEST_F(IoRoverConfig, CommonSlipIsReadAndNeedsBothAxes) {
+  const RoverConfig c =
+      loadRoverConfig(write("format: 1\nslip_noise:\n  common_longitudinal_mps: 0.01\n"
+                            "  common_lateral_mps: 0.004\n  common_time_constant_s: 8\n"));
+  EXPECT_EQ(c.slip_noise.common_longitudinal_mps, 0.01);
+  EXPECT_EQ(c.slip_noise.common_lateral_mps, 0.004);
+  EXPECT_EQ(c.slip_noise.common_time_constant_s, 8.0);
+  EXPECT_TRUE(c.slip_noise.hasCommonSlip());
+  EXPECT_FALSE(loadRoverConfig(write("format: 1\n")).slip_noise.hasCommonSlip());  // default off
+  expectError("format: 1\nslip_noise:\n  common_longitudinal_mps: 0.01\n", 3,
+              "common_longitudinal_mps and common_lateral_mps must both be > 0");
+  expectError("format: 1\nslip_noise:\n  common_time_constant_s: 0\n", 3, "common_time_constant_s");
+}
+
 TEST_F(IoRoverConfig, MissingKeysTakeDefaults) {
   const RoverConfig c = loadRoverConfig(write("format: 1\n"));
   const RoverConfig d;
@@ -70,6 +84,9 @@ TEST_F(IoRoverConfig, SaveLoadRoundTrip) {
   c.gravity_mps2 = 3.711;
   c.sun.azimuth_elevation = {Vec3d(0, 0.1, 0.5), Vec3d(100, 0.2, 0.6)};
   c.sun_sensor.R_body_sensor = so3::fromRollPitchYaw(0.01, -0.02, 0.3).toRotationMatrix();
+  c.slip_noise.common_longitudinal_mps = 0.007;
+  c.slip_noise.common_lateral_mps = 0.003;
+  c.slip_noise.common_time_constant_s = 12.5;
   saveRoverConfig(dir_ / "out.yaml", c);
   const RoverConfig r = loadRoverConfig(dir_ / "out.yaml");
   EXPECT_EQ(r.gyro.axes, GyroAxes::kThreeAxis);
@@ -80,6 +97,9 @@ TEST_F(IoRoverConfig, SaveLoadRoundTrip) {
   EXPECT_LT((r.sun_sensor.R_body_sensor - c.sun_sensor.R_body_sensor).norm(), 1e-15);
   EXPECT_EQ(r.process.contact_angle_noise_rad_per_sqrt_s,
             c.process.contact_angle_noise_rad_per_sqrt_s);
+  EXPECT_EQ(r.slip_noise.common_longitudinal_mps, 0.007);
+  EXPECT_EQ(r.slip_noise.common_lateral_mps, 0.003);
+  EXPECT_EQ(r.slip_noise.common_time_constant_s, 12.5);
 }
 
 TEST_F(IoRoverConfig, SunTableInterpolates) {

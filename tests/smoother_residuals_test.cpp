@@ -960,10 +960,13 @@ TEST(SmootherResidualCollector, EqualFunctorsShareACostFunctionAndTheCostIsCeres
     using C = NodeColumns;
     Node& n = storage[k];
     const int node = static_cast<int>(k);
-    h[k] = {
-        {n.q, 4, {node, C::kAttitude, 3}, &manifold}, {n.x, 3, {node, C::kPosition, 3}, nullptr},
-        {n.v, 3, {node, C::kVelocity, 3}, nullptr},   {n.w, 3, {node, C::kRate, 3}, nullptr},
-        {n.xi, 6, {node, C::kContact, 6}, nullptr},   {n.b, 3, {node, C::bias(6), 3}, nullptr}};
+    h[k] = {{n.q, 4, {node, C::kAttitude, 3}, &manifold},
+            {n.x, 3, {node, C::kPosition, 3}, nullptr},
+            {n.v, 3, {node, C::kVelocity, 3}, nullptr},
+            {n.w, 3, {node, C::kRate, 3}, nullptr},
+            {n.xi, 6, {node, C::kContact, 6}, nullptr},
+            {n.b, 3, {node, C::bias(6), 3}, nullptr},
+            {}};
   }
   ceres::CauchyLoss loss(1.0);
   ResidualCollector out;

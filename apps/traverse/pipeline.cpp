@@ -215,7 +215,11 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
               << "), sun " << s.sun_updates << " (" << s.sun_rejected
               << " gated out), zero-velocity " << s.zero_velocity_updates << ", zero-rate "
               << s.zero_rate_updates << ", bias " << s.bias_updates << ", gravity "
-              << s.gravity_updates << ", gyro " << s.gyro_updates << "\n";
+              << s.gravity_updates << ", gyro " << s.gyro_updates
+              << (s.common_slip_jumps > 0
+                      ? "; common slip jumps " + std::to_string(s.common_slip_jumps)
+                      : std::string())
+              << "\n";
     if (e.smoothed) {
       int converged = 0, fallback = 0;
       double solve = 0, cov = 0;

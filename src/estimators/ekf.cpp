@@ -82,11 +82,14 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       three_axis_(three_axis_gyro),
       has_cmd_(has_cmd),
       nw_(geometry.numWheels()),
-      n_(ekfStates(geometry.numWheels())) {
+      nc_(config.slip_noise.hasCommonSlip() ? kCommonSlipStates : 0),
+      kc_(I::commonSlip(nw_)),
+      n_(ekfStates(nw_, nc_)) {
   S_ =
       (three_axis_ ? sensors::GyroAxes::threeAxis() : sensors::GyroAxes::headingOnly()).selection();
   gate2_ = chiSquareQuantile(options.gate_probability, 2);
   gate4_ = chiSquareQuantile(options.gate_probability, 4);
+  jump_gate_ = chiSquareQuantile(options.common_slip_jump_probability, 2);
   q_ = init.q_site_body;
   x_ = init.p_site;
   b_ = init.bias;
@@ -109,6 +112,11 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       .diagonal()
       .setConstant(std::pow(options.initial_contact_sigma_rad, 2));
   P_.block<3, 3>(I::kBias, I::kBias) = init.bias_sigma.cwiseAbs2().asDiagonal();
+  if (nc_ > 0) {  // the process' steady state
+    const auto& sn = config.slip_noise;
+    P_(kc_, kc_) = sn.common_longitudinal_mps * sn.common_longitudinal_mps;
+    P_(kc_ + 1, kc_ + 1) = sn.common_lateral_mps * sn.common_lateral_mps;
+  }
 }
 
 // O-1 (hybrid): measured axes from the bias-corrected gyro, the others from ω_c; ω_p on all.
@@ -134,6 +142,7 @@ Ekf::Damping Ekf::damping(const EkfInputs& in) const {
   // Across a gyro gap the rate of a gyro axis has no prescription either without cmd.csv.
   if (hybrid && in.gyro_gap && !has_cmd_) d.a_w = d.a_w.cwiseProduct(Vec3d::Ones() - S_.diagonal());
   d.a_xi = -1.0 / pc.contact_angle_time_constant_s;
+  d.a_c = -1.0 / config_.slip_noise.common_time_constant_s;
   return d;
 }
 
@@ -160,6 +169,7 @@ void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
   F.block<3, 3>(I::kPos, I::kTheta) = -R * so3::skew(v);
   F.block<3, 3>(I::kPos, I::kVel) = R;
   F.block(I::kXi, I::kXi, nw_, nw_).diagonal().setConstant(d.a_xi);
+  if (nc_ > 0) F.block<2, 2>(kc_, kc_).diagonal().setConstant(d.a_c);
   out->v_dot.setZero();
   if (d.accel_driven &&
       !in.accel_gap) {  // O-4, linearised with Jets through the shared accelerometer model
@@ -215,6 +225,11 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
                                          : std::pow(pc.velocity_noise_mps2_per_sqrt_hz, 2));
   qc.segment(I::kXi, nw_).setConstant(std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2));
   qc.segment<3>(I::kBias).setConstant(std::pow(config_.gyro.bias_random_walk_rad_s_per_sqrt_s, 2));
+  if (nc_ > 0) {  // Gauss–Markov: density 2σ²/τ keeps the steady-state σ
+    const auto& sn = config_.slip_noise;
+    qc[kc_] = -2.0 * d.a_c * sn.common_longitudinal_mps * sn.common_longitudinal_mps;
+    qc[kc_ + 1] = -2.0 * d.a_c * sn.common_lateral_mps * sn.common_lateral_mps;
+  }
 
   detail::propagateCovarianceInPlace(lin.F, dt, &P_);
   P_.diagonal() += qc * dt;  // white process noise over dt (first order)
@@ -228,6 +243,7 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   w_p_ = (d.a_w * dt).array().exp().matrix().cwiseProduct(w_p_);
   v_p_ = accel_driven ? Vec3d(v_p_ + v_dot * dt) : Vec3d(std::exp(d.a_v * dt) * v_p_);
   xi_ *= std::exp(d.a_xi * dt);
+  c_ *= std::exp(d.a_c * dt);
 }
 
 namespace detail {
@@ -310,6 +326,9 @@ void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P) {
     case ekfStates(6):
       propagateKernel<ekfStates(6)>(F.data(), dt, P->data(), n);
       break;
+    case ekfStates(6, kCommonSlipStates):
+      propagateKernel<ekfStates(6, kCommonSlipStates)>(F.data(), dt, P->data(), n);
+      break;
     default:
       propagateKernel<Eigen::Dynamic>(F.data(), dt, P->data(), n);
       break;
@@ -343,6 +362,9 @@ void josephUpdate(EkfMatrix* P, const EkfCols<M>& K, const EkfCols<M>& PHt,
       break;
     case ekfStates(6):
       josephKernel<ekfStates(6), M>(P->data(), n, Kt, HP, S);
+      break;
+    case ekfStates(6, kCommonSlipStates):
+      josephKernel<ekfStates(6, kCommonSlipStates), M>(P->data(), n, Kt, HP, S);
       break;
     default:
       josephKernel<Eigen::Dynamic, M>(P->data(), n, Kt, HP, S);
@@ -381,6 +403,7 @@ void Ekf::absorb(const EkfVector& dx) {
   v_p_ += dx.segment<3>(I::kVel);
   xi_ += dx.segment(I::kXi, nw_);
   b_ += dx.segment<3>(I::kBias);
+  if (nc_ > 0) c_ += dx.segment<2>(kc_);
   // Reset Jacobian of the attitude error: δθ⁺ ≈ (I − ½[dθ]×) δθ.
   const Mat3d G = detail::resetJacobian(dtheta);
   P_.middleRows<3>(I::kTheta) = G * P_.middleRows<3>(I::kTheta);
@@ -426,14 +449,17 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
   // (then it is part of the measurement function and is differentiated with it).
   const Twistd cmd_twist = rover::nominalBodyTwist(geometry_, in.v_cmd.x(), in.w_cmd.z());
   const bool hybrid = options_.attitude == EkfOptions::AttitudeModel::kGyroDriven;
+  if (nc_ > 0 && options_.common_slip_jumps)
+    commonSlipJump(js, in, has_cmd_ ? &cmd_twist : nullptr);
   for (int i = 0; i < nw_; ++i) {
     if (!js.wheelUsed(i)) {  // a wheel outage: no slip rows from this wheel
       ++stats_.slip_not_used;
       continue;
     }
     // Re-linearise at the state the previous wheel's update left (sequential processing).
+    // The wheels roll as if the body moved at v + c (c: their common slip, zero without it).
     Eigen::Matrix<double, 7, 1> s;
-    s << v_now(), omega<double>(w_p_, b_, in), xi_[i];
+    s << v_now() + Vec3d(c_.x(), c_.y(), 0.0), omega<double>(w_p_, b_, in), xi_[i];
     Eigen::Matrix<double, 4, 7> J;
     Eigen::Matrix<double, 4, 7> Jt;  // ∂t/∂s: the noise is the constraint's (nominal: exact)
     const Vec4d r =
@@ -445,9 +471,45 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     H.block<4, 3>(0, I::kRate) = J.middleCols<3>(3);
     if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * gyroAxes(in);
     H.col(I::kXi + i) = J.col(6);
+    if (nc_ > 0) H.block<4, 2>(0, kc_) = J.leftCols<2>();
     ++stats_.slip_updates;
     if (!update<4>(r, H, Ri, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
   }
+}
+
+void Ekf::commonSlipJump(const JointSample& js, const EkfInputs& in, const Twistd* commanded) {
+  const bool accel_driven =
+      options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
+  Eigen::Matrix<double, 7, 1> s;
+  s << (accel_driven ? v_p_ : velocity<double>(v_p_, in)) + Vec3d(c_.x(), c_.y(), 0.0),
+      omega<double>(w_p_, b_, in), 0.0;
+  // Each wheel's contact-point mismatch (rows 0-2 of r = nominal − t) in the body frame,
+  // R_l r: under no jump, −(δv + δc) plus the wheel's noise. Their mean over the wheels and its
+  // covariance (v + c from P, the rows' noise divided by the wheel count).
+  Vec2d u = Vec2d::Zero();
+  Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
+  int n = 0;
+  for (int i = 0; i < nw_; ++i) {
+    if (!js.wheelUsed(i)) continue;
+    s[6] = xi_[i];
+    Eigen::Matrix<double, 4, 7> H, Jt;
+    const Vec4d r = slipUpdateResidual(geometry_, js, i, commanded, s, &H, &Jt);
+    const Eigen::Matrix4d Ri = rover::slipCovariance(config_.slip_noise, js, i, s.head<3>(),
+                                                     s.segment<3>(3), Jt.leftCols<6>());
+    const Mat3d Rl = Jt.block<3, 3>(0, 0).transpose();  // ∂t/∂v = R_lᵀ
+    u += (Rl * r.head<3>()).head<2>();
+    R += (Rl * Ri.topLeftCorner<3, 3>() * Rl.transpose()).topLeftCorner<2, 2>();
+    ++n;
+  }
+  if (n == 0) return;
+  u /= n;
+  R /= static_cast<double>(n) * n;
+  const Eigen::Matrix2d P_vc = P_.block<2, 2>(I::kVel, I::kVel) + P_.block<2, 2>(kc_, kc_) +
+                               P_.block<2, 2>(I::kVel, kc_) + P_.block<2, 2>(kc_, I::kVel);
+  const Eigen::Matrix2d S = P_vc + R;
+  if (u.dot(S.ldlt().solve(u)) <= jump_gate_) return;
+  P_.block<2, 2>(kc_, kc_) += u * u.transpose();
+  ++stats_.common_slip_jumps;
 }
 
 void Ekf::updateSun(const Vec2d& s_m, const Vec3d& sun_site) {
@@ -550,6 +612,7 @@ TrajectoryNode Ekf::node(double t, const EkfInputs& in) const {
   n.xi = xi_;
   n.bias = b_;
   n.bias_sigma = P_.block<3, 3>(I::kBias, I::kBias).diagonal().cwiseSqrt();
+  n.common_slip = c_;
   n.covariance.topLeftCorner<3, 3>() = P_.block<3, 3>(I::kPos, I::kPos);
   n.covariance.bottomRightCorner<3, 3>() = P_.block<3, 3>(I::kTheta, I::kTheta);
   n.covariance.topRightCorner<3, 3>() = P_.block<3, 3>(I::kPos, I::kTheta);

@@ -20,7 +20,8 @@ bool segmentCovariance(const ResidualCollector& residuals, std::span<const NodeH
   const BlockHandle& bias = nodes.front().bias;
   const bool node_bias = bias.place.node != ChainPlace::kGlobal;
   const int wheels = nodes.front().xi.place.size;
-  const int node_dim = NodeColumns::states(wheels) + (node_bias ? bias.place.size : 0);
+  const int common = nodes.front().c.place.size;
+  const int node_dim = NodeColumns::states(wheels, common) + (node_bias ? bias.place.size : 0);
   const int global_dim = node_bias ? 0 : bias.place.size;
   ChainInformation H = makeChainInformation(static_cast<int>(nodes.size()), node_dim, global_dim);
   std::vector<double> jacobian;
@@ -55,8 +56,8 @@ bool segmentCovariance(const ResidualCollector& residuals, std::span<const NodeH
     node.bias_sigma.setZero();
     for (size_t i = 0; i < bias_axes.size(); ++i) {
       const int c = static_cast<int>(i);
-      const double var = node_bias ? S(NodeColumns::bias(wheels) + c, NodeColumns::bias(wheels) + c)
-                                   : m.global(c, c);
+      const int col = NodeColumns::bias(wheels, common) + c;
+      const double var = node_bias ? S(col, col) : m.global(c, c);
       node.bias_sigma[bias_axes[i]] = std::sqrt(std::max(var, 0.0));
     }
   }

@@ -101,6 +101,7 @@ namespace {
 /// Parameter blocks of one node. Quaternion storage: x, y, z, w.
 struct NodeBlocks {
   double q[4], x[3], v[3], w[3], xi[rover::kMaxWheels], b[3];  // ξ: the first numWheels()
+  double c[2];  // the wheels' common slip (used when the rover declares it)
 };
 
 double seconds(std::chrono::steady_clock::time_point t0) {
@@ -117,6 +118,7 @@ class SegmentBuilder {
         cfg_(d.log.config),
         n_(spec.last - spec.first + 1),
         nw_(d.log.geometry.numWheels()),
+        nc_(d.log.config.slip_noise.hasCommonSlip() ? 2 : 0),
         contact_memo_(static_cast<size_t>(nw_)) {
     ceres::Problem::Options po;
     // The builder owns every cost function (residuals_), loss and manifold: a Problem that owns
@@ -140,6 +142,9 @@ class SegmentBuilder {
     if (loss == SmootherOptions::Loss::kCauchy) loss_ = std::make_unique<ceres::CauchyLoss>(scale);
     if (o.contact_loss_scale > 0)
       contact_loss_ = std::make_unique<ceres::CauchyLoss>(o.contact_loss_scale);
+    // The common slip's steps: Gaussian drift, and the jumps of a slip burst (the EKF's jump
+    // test) — a Cauchy tail from 3σ.
+    common_slip_loss_ = std::make_unique<ceres::CauchyLoss>(3.0);
     gyro_axes_ = d.gyro_axes.mask();
     seedStates();
     makeHandles();
@@ -176,6 +181,7 @@ class SegmentBuilder {
   const io::RoverConfig& cfg_;
   size_t n_;
   int nw_;  ///< wheels
+  int nc_;  ///< common slip states per node (0 or 2)
   std::vector<NodeBlocks> nodes_;
   double segment_bias_[3] = {0, 0, 0};
   std::vector<NodeHandles> handles_;  ///< per node; never resized once made
@@ -189,10 +195,11 @@ class SegmentBuilder {
   std::unique_ptr<ceres::Problem> problem_;
   BodyQuaternionManifold quaternion_manifold_;
   std::unique_ptr<ceres::Manifold> bias_manifold_;
-  std::unique_ptr<ceres::LossFunction> loss_, contact_loss_;
+  std::unique_ptr<ceres::LossFunction> loss_, contact_loss_, common_slip_loss_;
   CostMemo<AttitudeProcessResidual> attitude_memo_;
   CostMemo<PositionProcessResidual> position_memo_;
   CostMemo<MarkovProcess<3>> rate_memo_, velocity_memo_;
+  CostMemo<MarkovProcess<2>> common_slip_memo_;
   CostMemo<ZeroMotion> zero_velocity_memo_, zero_rate_memo_;
   std::vector<CostMemo<MarkovComponent>> contact_memo_;  ///< one per wheel
   BlockEvaluator evaluator_;
@@ -217,6 +224,7 @@ void SegmentBuilder::seedStates() {
     std::fill(std::begin(b.xi), std::end(b.xi), 0.0);
     for (int i = 0; i < nw_; ++i) b.xi[i] = s.xi[i];
     Eigen::Map<Vec3d>(b.b) = s.bias;
+    Eigen::Map<Vec2d>(b.c) = s.common_slip;
   }
   // Constant bias: the seed's at the segment's middle (the EKF has seen the first rest by then).
   Eigen::Map<Vec3d>{segment_bias_} = seedNode(n_ / 2).bias;
@@ -232,14 +240,15 @@ void SegmentBuilder::makeHandles() {
   for (size_t k = 0; k < n_; ++k) {
     NodeBlocks& b = nodes_[k];
     const int node = static_cast<int>(k);
-    handles_[k] = {{b.q, 4, {node, C::kAttitude, 3}, &quaternion_manifold_},
-                   {b.x, 3, {node, C::kPosition, 3}, nullptr},
-                   {b.v, 3, {node, C::kVelocity, 3}, nullptr},
-                   {b.w, 3, {node, C::kRate, 3}, nullptr},
-                   {b.xi, nw_, {node, C::kContact, nw_}, nullptr},
-                   randomWalkBias()
-                       ? BlockHandle{b.b, 3, {node, C::bias(nw_), bias_dim}, bias_manifold}
-                       : segment_bias};
+    handles_[k] = {
+        {b.q, 4, {node, C::kAttitude, 3}, &quaternion_manifold_},
+        {b.x, 3, {node, C::kPosition, 3}, nullptr},
+        {b.v, 3, {node, C::kVelocity, 3}, nullptr},
+        {b.w, 3, {node, C::kRate, 3}, nullptr},
+        {b.xi, nw_, {node, C::kContact, nw_}, nullptr},
+        randomWalkBias() ? BlockHandle{b.b, 3, {node, C::bias(nw_, nc_), bias_dim}, bias_manifold}
+                         : segment_bias,
+        nc_ > 0 ? BlockHandle{b.c, nc_, {node, C::commonSlip(nw_), nc_}, nullptr} : BlockHandle{}};
   }
 }
 
@@ -296,6 +305,7 @@ void SegmentBuilder::addParameterBlocks() {
     add(h.q);
     for (const BlockHandle* b : {&h.x, &h.v, &h.w, &h.xi})
       problem_->AddParameterBlock(b->data, b->size);  // Euclidean
+    if (nc_ > 0) problem_->AddParameterBlock(h.c.data, h.c.size);
     if (randomWalkBias()) add(h.bias);
   }
   if (!randomWalkBias()) add(handles_.front().bias);
@@ -343,6 +353,9 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
                      d_.gyro_period_s, gyro_axes_, a, b);
   if (randomWalkBias())  // K-9
     addBiasWalk(residuals_, dt, cfg_.gyro.bias_random_walk_rad_s_per_sqrt_s, a, b);
+  if (nc_ > 0)
+    addCommonSlipProcess(residuals_, common_slip_memo_, dt, cfg_.slip_noise,
+                         common_slip_loss_.get(), a, b);
 }
 
 void SegmentBuilder::addSlipResiduals(size_t k) {
@@ -411,6 +424,7 @@ void SegmentBuilder::addStartPriors() {
   // Contact angles start from the stationary distribution of K-8.
   addContactPrior(residuals_, cfg_.process.contact_angle_time_constant_s,
                   cfg_.process.contact_angle_noise_rad_per_sqrt_s, handles_[0]);
+  if (nc_ > 0) addCommonSlipPrior(residuals_, cfg_.slip_noise, handles_[0]);
   // Without a rest window the bias keeps the EKF's estimate as a prior.
   if (spec_.rests.empty() || !o_.use_rest)
     addBiasPrior(residuals_, s.bias, s.bias_sigma, handles_[0]);
@@ -486,6 +500,7 @@ SegmentSolution SegmentBuilder::solve() {
     node.w_body = Eigen::Map<const Vec3d>(b.w);
     node.xi = Eigen::Map<const rover::WheelVectord>(b.xi, nw_);
     node.bias = Eigen::Map<const Vec3d>(randomWalkBias() ? b.b : segment_bias_);
+    if (nc_ > 0) node.common_slip = Eigen::Map<const Vec2d>(b.c);
   }
   if (sum.status != SegmentStatus::kFallbackEkf && o_.covariance) {
     const auto tc = std::chrono::steady_clock::now();

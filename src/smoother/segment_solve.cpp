@@ -37,6 +37,7 @@ ceres::Solver::Options segmentSolverOptions(const SmootherOptions& o,
       const NodeHandles& h = nodes[k];
       for (const BlockHandle* b : {&h.q, &h.x, &h.v, &h.w, &h.xi})
         ordering->AddElementToGroup(b->data, static_cast<int>(k));
+      if (h.c.size > 0) ordering->AddElementToGroup(h.c.data, static_cast<int>(k));
       if (h.bias.place.node != ChainPlace::kGlobal)
         ordering->AddElementToGroup(h.bias.data, static_cast<int>(k));
     }

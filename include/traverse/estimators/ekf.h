@@ -2,12 +2,15 @@
 //
 // Nominal state: attitude q (body → site), rate perturbation ω_p, position x (site), velocity
 // perturbation v_p (body), gyro bias b, contact angles ξ1..ξN (one per wheel of the rover's
-// URDF). Error state (15 + N):
-//   [δθ (body small angle, q = q̂ ⊗ Exp(δθ)), δω_p, δx, δv_p, δb, δξ].
+// URDF), and, when rover.yaml declares it (slip_noise.common_*), the wheels' common slip
+// c = (c_x, c_y) (body, m/s; a Gauss–Markov process: ċ = −c/τ + n_c). Error state (15 + N + C,
+// C = 0 or 2):
+//   [δθ (body small angle, q = q̂ ⊗ Exp(δθ)), δω_p, δx, δv_p, δb, δξ, δc].
 // Process (continuous-discrete): K-1 ẋ = R(q)(v_c + v_p), v̇_p = A_v v_p + n_v; K-2/K-7 attitude
 // with ω = ω_c + ω_p (gyro as a measurement, K-12) or the hybrid O-1 form ω = B_gᵀ(ω_m − b) +
 // ω_p on the measured axes (default; the gyro drives the heading); K-8 ξ̇ = A_ξ ξ + n_ξ;
-// K-9 ḃ = n_b; or O-4, the accelerometer driving the velocity. Updates are processed
+// K-9 ḃ = n_b; or O-4, the accelerometer driving the velocity. The slip rows see the body
+// moving at v + c. Updates are processed
 // sequentially as each stream's samples arrive (R §5): slip constraint (K-17, four rows per
 // wheel), sun sensor (K-15/16), gyro (K-12, when a measurement), and at rest zero velocity, zero
 // rate, the bias (each gyro sample: Nickels' drift filter) and roll/pitch from gravity. Joseph-form
@@ -26,11 +29,13 @@
 
 namespace traverse::est {
 
-/// Size of the error state of a rover with `wheels` wheels, and its largest value.
-constexpr int ekfStates(int wheels) {
-  return 15 + wheels;
+/// Size of the error state of a rover with `wheels` wheels and `common_slip` (0 or 2) common
+/// slip states, and its largest value.
+constexpr int ekfStates(int wheels, int common_slip = 0) {
+  return 15 + wheels + common_slip;
 }
-inline constexpr int kMaxEkfStates = ekfStates(rover::kMaxWheels);
+inline constexpr int kCommonSlipStates = 2;
+inline constexpr int kMaxEkfStates = ekfStates(rover::kMaxWheels, kCommonSlipStates);
 /// Error-state vectors and matrices: fixed storage (no heap), size ekfStates(wheels).
 using EkfVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxEkfStates, 1>;
 using EkfMatrix =
@@ -42,9 +47,11 @@ using EkfRows = Eigen::Matrix<double, M, Eigen::Dynamic, M == 1 ? Eigen::RowMajo
 template <int M>
 using EkfCols = Eigen::Matrix<double, Eigen::Dynamic, M, 0, kMaxEkfStates, M>;
 
-/// Offsets of the error-state blocks (ξ last: its length is the rover's wheel count).
+/// Offsets of the error-state blocks (ξ then c last: their offsets depend on the rover's wheel
+/// count; c starts at commonSlip(N)).
 struct EkfIndex {
   static constexpr int kTheta = 0, kRate = 3, kPos = 6, kVel = 9, kBias = 12, kXi = 15;
+  static constexpr int commonSlip(int wheels) { return kXi + wheels; }
 };
 
 struct EkfOptions {
@@ -57,6 +64,13 @@ struct EkfOptions {
   bool use_sun = true, use_slip = true, use_rest = true;
   bool gating = true;
   double gate_probability = 0.9999;  ///< χ² gate for sun and slip innovations
+  /// The common slip c changes by jumps as well as by its Gauss–Markov drift (the ground gives
+  /// under every wheel at once: a slip burst). At each joint sample the wheels' mean velocity
+  /// mismatch (body x, y) is tested against its covariance; beyond this χ²₂ probability the
+  /// mismatch is taken for a jump of c and added to c's covariance (ū ūᵀ) before the wheels'
+  /// rows are processed, so that the wheels move c, not the velocity the accelerometer holds.
+  double common_slip_jump_probability = 0.999;
+  bool common_slip_jumps = true;  ///< the jump test (off: c is only the Gauss–Markov process)
   double zero_velocity_sigma_mps = 0.001;
   double zero_rate_sigma_rad_s = 1e-4;          ///< added to the gyro noise
   double rate_noise_scale_measured_axes = 0.1;  ///< n_ω on gyro-driven axes is small (O §2.2.1)
@@ -74,6 +88,7 @@ struct EkfStats {
   long sun_updates = 0, sun_rejected = 0;
   long gyro_updates = 0, zero_velocity_updates = 0, zero_rate_updates = 0, gravity_updates = 0;
   long bias_updates = 0;
+  long common_slip_jumps = 0;  ///< joint samples whose wheels' mismatch was taken for a jump of c
 };
 
 /// Inputs at one instant: gyro reading (all three axes; with a heading-only gyro only z is
@@ -95,11 +110,12 @@ using rover::JointSample;
 /// The nominal state (the point the error state is taken about).
 struct EkfState {
   Quatd q_site_body = Quatd::Identity();
-  Vec3d w_p = Vec3d::Zero();     ///< rate perturbation ω_p (body)
-  Vec3d p_site = Vec3d::Zero();  ///< position x (site)
-  Vec3d v_p = Vec3d::Zero();     ///< velocity perturbation v_p (body; O-4: the body velocity)
-  rover::WheelVectord xi;        ///< contact angles ξ1..ξN
-  Vec3d bias = Vec3d::Zero();    ///< gyro bias b
+  Vec3d w_p = Vec3d::Zero();          ///< rate perturbation ω_p (body)
+  Vec3d p_site = Vec3d::Zero();       ///< position x (site)
+  Vec3d v_p = Vec3d::Zero();          ///< velocity perturbation v_p (body; O-4: the body velocity)
+  rover::WheelVectord xi;             ///< contact angles ξ1..ξN
+  Vec3d bias = Vec3d::Zero();         ///< gyro bias b
+  Vec2d common_slip = Vec2d::Zero();  ///< c (body x, y; zero without the state)
 };
 
 class Ekf {
@@ -151,12 +167,15 @@ class Ekf {
   const EkfMatrix& covariance() const { return P_; }
   /// Replaces the covariance (tests; P must be symmetric positive semi-definite).
   void setCovariance(const EkfMatrix& P) { P_ = P; }
-  EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_}; }
-  /// Size of the error state: ekfStates(number of wheels).
+  EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_, c_}; }
+  /// Size of the error state: ekfStates(number of wheels, common slip states).
   int numStates() const { return n_; }
+  /// Whether the state has the common slip c (rover.yaml declares its σ).
+  bool hasCommonSlip() const { return nc_ > 0; }
   /// Replaces the nominal state (tests).
   void setState(const EkfState& s) {
     q_ = s.q_site_body, w_p_ = s.w_p, x_ = s.p_site, v_p_ = s.v_p, xi_ = s.xi, b_ = s.bias;
+    c_ = nc_ > 0 ? s.common_slip : Vec2d::Zero();
   }
 
   /// Body rate and velocity of the current estimate (templated so Jets differentiate them).
@@ -173,7 +192,7 @@ class Ekf {
   struct Damping {
     bool accel_driven;
     Vec3d a_w;
-    double a_v, a_xi;
+    double a_v, a_xi, a_c;
   };
   Damping damping(const EkfInputs& in) const;
   /// What a propagation step needs at the state before it: the dampings, ω, v, v̇ (O-4; zero
@@ -185,6 +204,9 @@ class Ekf {
   };
   void linearise(const EkfInputs& in, Linearisation* out) const;
   void gyroAxisUpdates(const Vec3d& w_m, bool at_rest, long* count);
+  /// The jump test of EkfOptions::common_slip_jump_probability at this joint sample (c's
+  /// covariance grows when it fires).
+  void commonSlipJump(const JointSample& js, const EkfInputs& in, const Twistd* commanded);
 
   const io::RoverConfig& config_;
   const rover::RoverGeometry& geometry_;
@@ -193,14 +215,15 @@ class Ekf {
   Mat3d S_;  ///< ∂ω/∂b = −S_ (gyro-driven) — the gyro's axes
   /// The gyro's axes at these inputs: S_, or none inside a gyro gap.
   Mat3d gyroAxes(const EkfInputs& in) const { return in.gyro_gap ? Mat3d::Zero() : S_; }
-  double gate2_, gate4_;
+  double gate2_, gate4_, jump_gate_;
   double gyro_period_ = 0.05, accel_period_ = 0.1;
   Vec3d last_w_cmd_ = Vec3d::Zero();  ///< commanded rate at the latest propagation (K-12 mode)
   // Nominal state.
   Quatd q_;
   Vec3d w_p_, x_, v_p_, b_;
   rover::WheelVectord xi_;
-  int nw_, n_;  ///< wheels, error-state size
+  Vec2d c_ = Vec2d::Zero();
+  int nw_, nc_, kc_, n_;  ///< wheels, common slip states (0, 2), their offset, error-state size
   EkfMatrix P_;
   EkfStats stats_;
 };

@@ -24,6 +24,16 @@ struct SlipNoise {
   /// Longitudinal slip that grows with the speed (a fraction of |v_x|: wheel sinkage, a tyre's
   /// effective radius that varies with the ground): σ² += (k |v_x|)².
   double longitudinal_per_speed = 0.0;
+  /// Slip the wheels share, correlated in time (a first-order Gauss–Markov process per body
+  /// axis, steady-state σ in m/s, correlation time in s): the ground moving under every wheel
+  /// at once (sand, a slope, a burst), which the per-wheel white rows above cannot represent —
+  /// six wheels that agree are then taken for the body's motion. The estimators carry it as a
+  /// state c = (c_x, c_y): the wheels roll as if the body moved at v + c. Zero (the default):
+  /// no such state.
+  double common_longitudinal_mps = 0.0;
+  double common_lateral_mps = 0.0;
+  double common_time_constant_s = 5.0;
+  bool hasCommonSlip() const { return common_longitudinal_mps > 0 || common_lateral_mps > 0; }
 };
 
 /// Joint data at a joint sample: wheel frames g_{s f_i} and the wheels' joint twists J q̇ (K-17).

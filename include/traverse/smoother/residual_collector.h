@@ -34,18 +34,21 @@ struct BlockHandle {
 };
 
 /// A node's tangent columns in the chain information (ChainPlace::col): δθ, x, v, ω, ξ (one per
-/// wheel), then, with the random-walk bias model, the node's own bias.
+/// wheel), the wheels' common slip c when the rover declares it (`common` = 0 or 2 columns),
+/// then, with the random-walk bias model, the node's own bias.
 struct NodeColumns {
   static constexpr int kAttitude = 0, kPosition = 3, kVelocity = 6, kRate = 9, kContact = 12;
+  static constexpr int commonSlip(int wheels) { return kContact + wheels; }
   /// Columns before the bias, and the bias's first column, for a rover with `wheels` wheels.
-  static constexpr int states(int wheels) { return kContact + wheels; }
-  static constexpr int bias(int wheels) { return kContact + wheels; }
+  static constexpr int states(int wheels, int common = 0) { return kContact + wheels + common; }
+  static constexpr int bias(int wheels, int common = 0) { return kContact + wheels + common; }
 };
 
 /// Node k's blocks. `bias` is the gyro bias its residuals use: the node's own (random-walk
-/// model; place on node k) or the segment's (constant model; ChainPlace::kGlobal).
+/// model; place on node k) or the segment's (constant model; ChainPlace::kGlobal). `c`: the
+/// wheels' common slip (body x, y), size 0 (no storage) when the rover does not declare it.
 struct NodeHandles {
-  BlockHandle q, x, v, w, xi, bias;
+  BlockHandle q, x, v, w, xi, bias, c;
 };
 
 /// The last functor one kind of residual was made from, and its cost function. Nodes are mostly

@@ -18,17 +18,21 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
     if (!js.wheelUsed(i)) continue;  // a wheel outage (a stuck encoder): no slip rows
     const double radius = geometry.wheels[i].radius;
     Eigen::Matrix<double, 4, 7> J;
-    rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], seed.v_body,
+    const Vec3d v_wheels = seed.v_body + Vec3d(seed.common_slip.x(), seed.common_slip.y(), 0.0);
+    rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], v_wheels,
                                       seed.w_body, seed.xi[i], &J);
     const Eigen::Matrix4d R =
-        rover::slipCovariance(noise, js, i, seed.v_body, seed.w_body, J.leftCols<6>());
+        rover::slipCovariance(noise, js, i, v_wheels, seed.w_body, J.leftCols<6>());
     const Vec4d nominal = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist,
                                              js.joint_twist[i], geometry.wheels[i].icr_offset_y);
     if (data.size() == data.capacity())
       throw std::logic_error("smoother: slip data would move under its cost functions");
     data.push_back(
         {js.T_body_wheel[i], radius, js.joint_twist[i], nominal, sqrtInformation<4>(R, "slip")});
-    out.add("slip", new SlipResidual(i, nw, &data.back()), loss, k.v, k.w, k.xi);
+    if (k.c.size > 0)
+      out.add("slip", new SlipResidual(i, nw, &data.back(), true), loss, k.v, k.w, k.xi, k.c);
+    else
+      out.add("slip", new SlipResidual(i, nw, &data.back()), loss, k.v, k.w, k.xi);
   }
 }
 

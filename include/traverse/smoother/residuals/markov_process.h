@@ -22,6 +22,7 @@
 #include <ceres/sized_cost_function.h>
 
 #include "traverse/core/types.h"
+#include "traverse/rover/joint_sample.h"
 #include "traverse/rover/rover_geometry.h"
 #include "traverse/smoother/residual_collector.h"
 #include "traverse/smoother/residuals/analytic_cost.h"
@@ -198,6 +199,21 @@ inline void addContactProcess(ResidualCollector& out, std::vector<CostMemo<Marko
                   MarkovComponent(i, n, dt, a, noise * noise), loss, k.xi, k1.xi);
 }
 
+/// The wheels' common slip c (rover::SlipNoise::common_*): zero mean, steady-state σ per body
+/// axis and correlation time τ, so a = −1/τ and q = 2σ²/τ. Blocks c_k, c_{k+1}. Under `loss`
+/// (heavy-tailed): c also changes by jumps (a slip burst), as the EKF's jump test has it.
+inline void addCommonSlipProcess(ResidualCollector& out, CostMemo<MarkovProcess<2>>& memo,
+                                 double dt, const rover::SlipNoise& noise,
+                                 ceres::LossFunction* loss, const NodeHandles& k,
+                                 const NodeHandles& k1) {
+  const double tau = noise.common_time_constant_s;
+  const Vec2d q =
+      2.0 / tau * Vec2d(noise.common_longitudinal_mps, noise.common_lateral_mps).cwiseAbs2();
+  out.addShared("common_slip", memo,
+                MarkovProcess<2>(dt, Vec2d::Constant(-1.0 / tau), q, Vec2d::Zero(), Vec2d::Zero()),
+                loss, k.c, k1.c);
+}
+
 /// Gyro bias random walk (K-9, the random-walk bias model), σ_b per √s. Blocks b_k, b_{k+1}.
 inline void addBiasWalk(ResidualCollector& out, double dt, double walk, const NodeHandles& k,
                         const NodeHandles& k1) {
@@ -214,6 +230,15 @@ inline void addContactPrior(ResidualCollector& out, double time_constant, double
   const double sigma = noise * std::sqrt(0.5 * time_constant);
   out.add("contact_prior", new StationaryPriorResidual(Eigen::VectorXd::Constant(k.xi.size, sigma)),
           nullptr, k.xi);
+}
+
+/// The common slip's stationary distribution at a segment's first node: c ~ N(0, diag σ²).
+inline void addCommonSlipPrior(ResidualCollector& out, const rover::SlipNoise& noise,
+                               const NodeHandles& k) {
+  out.add("common_slip_prior",
+          new StationaryPriorResidual(
+              Eigen::Vector2d(noise.common_longitudinal_mps, noise.common_lateral_mps)),
+          nullptr, k.c);
 }
 
 }  // namespace traverse::smoother

@@ -12,7 +12,11 @@
 // rover::slipConstraintWithJacobian, itself tested against the Jet derivative of
 // rover::slipConstraint, the templated model every estimator shares.
 //
-// Parameter blocks: v (body, m/s), ω (body, rad/s), ξ (every wheel's contact angle, rad).
+// With the wheels' common slip c (rover.yaml slip_noise.common_*) the wheels roll as if the body
+// moved at v + (c_x, c_y, 0): t_i(v + c, ω, ξ_i).
+//
+// Parameter blocks: v (body, m/s), ω (body, rad/s), ξ (every wheel's contact angle, rad), and
+// with the common slip c (body x, y, m/s).
 #pragma once
 
 #include <ceres/cost_function.h>
@@ -40,10 +44,12 @@ struct SlipWheelData {
 class SlipResidual final : public ceres::CostFunction {
  public:
   /// Wheel `wheel` of `wheels` (the size of the ξ block). Keeps its own copy of the numbers.
+  /// `common_slip`: a fourth block, c.
   SlipResidual(int wheel, int wheels, const Posed& T_body_wheel, double radius,
                const Twistd& joint_twist, const Vec4d& nominal_slip,
-               const Eigen::Matrix4d& sqrt_info)
+               const Eigen::Matrix4d& sqrt_info, bool common_slip = false)
       : wheel_(wheel),
+        common_(common_slip),
         owned_(std::make_unique<SlipWheelData>(
             SlipWheelData{T_body_wheel, radius, joint_twist, nominal_slip, sqrt_info})),
         d_(owned_.get()) {
@@ -53,13 +59,16 @@ class SlipResidual final : public ceres::CostFunction {
   /// one array: the cost function is then 56 bytes instead of 350, and Ceres' passes over every
   /// residual block's cost function (sizes, row counts) read a dense run of memory instead of
   /// one cache line every 370 bytes (docs/results.md, "Speed", session 6).
-  SlipResidual(int wheel, int wheels, const SlipWheelData* data) : wheel_(wheel), d_(data) {
+  SlipResidual(int wheel, int wheels, const SlipWheelData* data, bool common_slip = false)
+      : wheel_(wheel), common_(common_slip), d_(data) {
     setSizes(wheels);
   }
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    const Eigen::Map<const Vec3d> v(parameters[0]), w(parameters[1]);
+    const Eigen::Map<const Vec3d> w(parameters[1]);
+    Vec3d v = Eigen::Map<const Vec3d>(parameters[0]);
+    if (common_) v.head<2>() += Eigen::Map<const Vec2d>(parameters[3]);
     const double xi = parameters[2][wheel_];
     Eigen::Matrix<double, 4, 7> J;
     const SlipWheelData& d = *d_;
@@ -76,36 +85,46 @@ class SlipResidual final : public ceres::CostFunction {
         Jxi.setZero();
         Jxi.col(wheel_) = -d.sqrt_info * J.col(6);
       }
+      if (common_ && jacobians[3]) {
+        using Rm42 = Eigen::Matrix<double, 4, 2, Eigen::RowMajor>;
+        Eigen::Map<Rm42>{jacobians[3]} = -d.sqrt_info * J.leftCols<2>();
+      }
     }
     return true;
   }
 
-  /// The same residual through the templated model (the autodiff twin the tests compare with).
+  /// The same residual through the templated model (the autodiff twin the tests compare with);
+  /// c: the common slip (zero without it).
   template <typename T, typename Xi>
-  Vec4<T> residual(const Vec3<T>& v, const Vec3<T>& w, const Xi& xi) const {
+  Vec4<T> residual(const Vec3<T>& v, const Vec3<T>& w, const Xi& xi,
+                   const Vec2<T>& c = Vec2<T>::Zero()) const {
     const SlipWheelData& d = *d_;
+    const Vec3<T> v_wheels(v.x() + c.x(), v.y() + c.y(), v.z());
     const Vec4<T> t =
-        rover::slipConstraint<T>(d.T_body_wheel, d.radius, d.joint_twist, v, w, xi[wheel_]);
+        rover::slipConstraint<T>(d.T_body_wheel, d.radius, d.joint_twist, v_wheels, w, xi[wheel_]);
     return d.sqrt_info.cast<T>() * (d.nominal_slip.cast<T>() - t);
   }
+  bool hasCommonSlip() const { return common_; }
 
  private:
   void setSizes(int wheels) {
     set_num_residuals(4);
     *mutable_parameter_block_sizes() = {3, 3, wheels};
+    if (common_) mutable_parameter_block_sizes()->push_back(2);
   }
 
   int wheel_;
+  bool common_ = false;
   std::unique_ptr<SlipWheelData> owned_;  ///< set by the owning constructor only
   const SlipWheelData* d_;
 };
 
 /// Constraint (residual_collector.h): every wheel's slip residuals at node k, under the robust
-/// loss. Blocks v_k, ω_k, ξ_k. Σ is the slip noise plus the joint-rate and steering noise carried
-/// through at the seed's states (rover::slipCovariance); t_nom the nominal slip of the nominal
-/// body twist (rover::nominalSlip). Each wheel's numbers are appended to `data`, which the cost
-/// functions refer to: it is reserved beforehand and must not reallocate (std::logic_error if
-/// it would).
+/// loss. Blocks v_k, ω_k, ξ_k, and c_k when the node has the common slip (k.c.size > 0). Σ is the
+/// slip noise plus the joint-rate and steering noise carried through at the seed's states
+/// (rover::slipCovariance); t_nom the nominal slip of the nominal body twist (rover::nominalSlip).
+/// Each wheel's numbers are appended to `data`, which the cost functions refer to: it is reserved
+/// beforehand and must not reallocate (std::logic_error if it would).
 void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                       const rover::RoverGeometry& geometry, const rover::SlipNoise& noise,
                       const rover::JointSample& js, const est::TrajectoryNode& seed,
