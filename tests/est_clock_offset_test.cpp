@@ -3,6 +3,9 @@
 // acceleration with the gyro and the accelerometer, reported, and removed before estimating.
 #include <gtest/gtest.h>
 
+#include <map>
+
+#include "support/bundled.h"
 #include "support/jacobian_check.h"
 #include "traverse/estimators/clock_offset.h"
 #include "traverse/eval/metrics.h"
@@ -16,14 +19,30 @@ std::filesystem::path datasets() {
   return std::filesystem::path(testing::sourceDir()) / "datasets";
 }
 
-sim::Simulation simulate(const std::string& scenario, uint64_t seed,
-                         const std::vector<std::string>& overrides = {}) {
-  return sim::simulate(sim::loadScenario(scenario, datasets(), overrides),
-                       datasets() / "rovers" / "rocky7", seed);
+/// The clean simulation of (scenario, seed), made once per process (ctest runs this suite as
+/// one: tests/CMakeLists.txt) — straight-1m seed 1 is the bundled log. The clock faults here are
+/// applied to it afterwards, as the simulator applies them (sim/faults.cpp: the stream's stamps
+/// moved by the offset, the accelerometer dropped), so eleven logs cost five simulations
+/// (each about 20–60 s under ASan).
+const sim::Simulation& clean(const std::string& scenario, uint64_t seed) {
+  static std::map<std::pair<std::string, uint64_t>, sim::Simulation> cache;
+  const auto key = std::make_pair(scenario, seed);
+  auto it = cache.find(key);
+  if (it == cache.end()) {
+    sim::Simulation s = scenario == "straight-1m" && seed == 1
+                            ? testing::bundledSimulation(scenario)
+                            : sim::simulate(sim::loadScenario(scenario, datasets(), {}),
+                                            datasets() / "rovers" / "rocky7", seed);
+    it = cache.emplace(key, std::move(s)).first;
+  }
+  return it->second;
 }
 
-std::string joints(double offset) {
-  return "faults.clock_offset.joints=" + std::to_string(offset);
+/// The clean log with joints.csv's clock `offset` late (faults.clock_offset.joints).
+io::TraverseLog withJointsLate(const io::TraverseLog& log, double offset) {
+  io::TraverseLog out = log;
+  out.joints.t.array() += offset;
+  return out;
 }
 
 // straight-1m: no turn, so only the forward acceleration (the start and the stop) carries the
@@ -32,8 +51,8 @@ std::string joints(double offset) {
 TEST(EstClockOffset, FindsTheJointsOffsetOnAStraightDrive) {
   for (const double offset : {0.3, -0.25}) {
     for (const uint64_t seed : {1, 2}) {
-      const sim::Simulation s = simulate("straight-1m", seed, {joints(offset)});
-      const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
+      const est::ClockOffset c =
+          est::estimateJointsClockOffset(withJointsLate(clean("straight-1m", seed).log, offset));
       EXPECT_TRUE(c.significant) << "offset " << offset << " seed " << seed;
       EXPECT_NEAR(c.offset_s, offset, 0.1) << "seed " << seed;
       EXPECT_EQ(c.signals, "forward acceleration") << c.message();
@@ -44,9 +63,9 @@ TEST(EstClockOffset, FindsTheJointsOffsetOnAStraightDrive) {
 
 // A turn in place without the accelerometer: the yaw rate alone.
 TEST(EstClockOffset, FindsItFromTheYawRateAlone) {
-  const sim::Simulation s = simulate("turn-in-place-360", 1, {joints(0.4), "faults.no_accel=true"});
-  ASSERT_FALSE(s.log.accel);
-  const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
+  io::TraverseLog log = withJointsLate(clean("turn-in-place-360", 1).log, 0.4);
+  log.accel.reset();  // faults.no_accel
+  const est::ClockOffset c = est::estimateJointsClockOffset(log);
   EXPECT_TRUE(c.significant) << c.message();
   EXPECT_NEAR(c.offset_s, 0.4, 0.08);  // a 3 s ramp in and out: a broad peak
   EXPECT_EQ(c.signals, "yaw rate");
@@ -62,7 +81,7 @@ TEST(EstClockOffset, ReportsNothingOnCleanLogs) {
                                                      {"straight-1m", 3},
                                                      {"turn-in-place-360", 2},
                                                      {"slow-onset", 1}}) {
-    const sim::Simulation s = simulate(scenario, seed);
+    const sim::Simulation& s = clean(scenario, seed);
     const est::ClockOffset c = est::estimateJointsClockOffset(s.log);
     EXPECT_TRUE(c.estimated || scenario == "slow-onset") << scenario;
     EXPECT_FALSE(c.significant) << scenario << " seed " << seed << ": " << c.message();
@@ -72,8 +91,7 @@ TEST(EstClockOffset, ReportsNothingOnCleanLogs) {
 
 // A log in which the rover never moves holds no timing information: nothing is estimated.
 TEST(EstClockOffset, NothingToCorrelateAtRest) {
-  const sim::Simulation s = simulate("straight-1m", 1, {joints(0.2)});
-  io::TraverseLog log = s.log;
+  io::TraverseLog log = withJointsLate(clean("straight-1m", 1).log, 0.2);
   const auto head = [](io::Stream& st, double t_end) {
     Eigen::Index n = 0;
     while (n < st.size() && st.t[n] < t_end) ++n;
@@ -87,8 +105,7 @@ TEST(EstClockOffset, NothingToCorrelateAtRest) {
 
 // The shift moves the joint stamps and the wheel outages, nothing else.
 TEST(EstClockOffset, ShiftMovesTheJointStampsOnly) {
-  const sim::Simulation s = simulate("straight-1m", 1);
-  io::TraverseLog log = s.log;
+  io::TraverseLog log = clean("straight-1m", 1).log;
   log.wheel_outages.push_back({2, 10.0, 12.0});
   const io::TraverseLog shifted = est::withJointsShifted(log, 0.25);
   EXPECT_DOUBLE_EQ(shifted.joints.t[7], log.joints.t[7] - 0.25);
@@ -103,20 +120,20 @@ TEST(EstClockOffset, ShiftMovesTheJointStampsOnly) {
 // consistent 3-dof estimate (1.2 against 38 kept; the clean log's is 0.32 — the 0.03 s left of the
 // offset still shows against that); kept, it is not.
 TEST(EstClockOffset, AlignedEstimatesAreConsistent) {
-  const sim::Simulation s = simulate("straight-1m", 1, {joints(0.2)});
-  const eval::TruthTrajectory truth(*s.log.truth);
+  const io::TraverseLog log = withJointsLate(clean("straight-1m", 1).log, 0.2);
+  const eval::TruthTrajectory truth(*log.truth);
   const auto nees = [&](const pipeline::Estimates& e) {
     return *eval::evaluate(e.ekf.trajectory, truth).get("nees_position_mean");
   };
-  const pipeline::Estimates aligned = pipeline::estimate(s.log);
+  const pipeline::Estimates aligned = pipeline::estimate(log);
   EXPECT_NEAR(aligned.joints_shift_s, -0.2, 0.05);
   EXPECT_LT(nees(aligned), 3.0);
   pipeline::PipelineConfig keep;
   keep.align_joints_clock = false;
-  EXPECT_GT(nees(pipeline::estimate(s.log, keep)), 10.0);
+  EXPECT_GT(nees(pipeline::estimate(log, keep)), 10.0);
   pipeline::PipelineConfig given;  // a known offset is removed as given
   given.joints_clock_offset_s = 0.2;
-  EXPECT_DOUBLE_EQ(pipeline::estimate(s.log, given).joints_shift_s, -0.2);
+  EXPECT_DOUBLE_EQ(pipeline::estimate(log, given).joints_shift_s, -0.2);
 }
 
 }  // namespace
