@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <memory>
+#include <stdexcept>
 
 #include "sim/sensor_synthesis.h"
 #include "traverse/io/rover_description.h"
@@ -238,6 +239,14 @@ Simulation simulate(const Scenario& sc, const std::filesystem::path& rover_dir, 
   sim.log = synthesizeLog(sc, config, geo, rover_dir, sim.truth, seed);
   applyFaults(sc, sim.log.config, geo, sim.truth, sim.log, seed);
   return sim;
+}
+
+Simulation withSensorFaults(Simulation clean, const Scenario& sc, uint64_t seed) {
+  if (!sc.faults.slip_burst.empty())
+    throw std::invalid_argument("withSensorFaults: a slip burst is in the physics: simulate it");
+  checkFaults(sc, clean.log.geometry);
+  applyFaults(sc, clean.log.config, clean.log.geometry, clean.truth, clean.log, seed);
+  return clean;
 }
 
 }  // namespace traverse::sim

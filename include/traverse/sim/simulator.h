@@ -40,6 +40,13 @@ struct Simulation {
 Simulation simulate(const Scenario& scenario, const std::filesystem::path& rover_dir,
                     uint64_t seed);
 
+/// `clean` (simulate() of a scenario without sensor faults) with `scenario`'s sensor faults
+/// applied as simulate() applies them — every fault but the slip burst, which is in the physics
+/// and is refused here (std::invalid_argument). With the same seed and otherwise the same
+/// scenario, the result equals simulate(scenario, …) (tests/sim_faults_test.cpp checks it):
+/// fault studies then pay for the physics once.
+Simulation withSensorFaults(Simulation clean, const Scenario& scenario, uint64_t seed);
+
 /// Truth interpolated at time t (linear; slerp for attitude; clamped at the ends).
 TruthSample interpolateTruth(const std::vector<TruthSample>& truth, double t);
 
