@@ -278,8 +278,9 @@ TEST(SmootherCommonSlip, SlipResidualHandChecked) {
   }
 }
 
-// The smoother's slip residual with c: its analytic Jacobians (all four blocks) against central
-// differences of the templated model at random joint samples and states.
+// The smoother's slip residual with c: its analytic Jacobians (all four blocks) against the Jet
+// Jacobian of the templated model (the fast twin's proof) and against central differences, at
+// random joint samples and states.
 TEST(SmootherCommonSlip, SlipResidualJacobiansMatchNumeric) {
   std::mt19937 rng(72);
   for (int trial = 0; trial < 24; ++trial) {
@@ -314,15 +315,22 @@ TEST(SmootherCommonSlip, SlipResidualJacobiansMatchNumeric) {
     };
     double Ja[4 * 14];
     const Vec4d r = eval(x, Ja);
-    const auto model = [&](const Eigen::Matrix<double, 14, 1>& z) {
-      return f.residual<double>(Vec3d(z.head<3>()), Vec3d(z.segment<3>(3)),
-                                Eigen::Matrix<double, kWheels, 1>(z.segment<kWheels>(6)),
-                                Vec2d(z.tail<2>()));
+    // The templated model (what every estimator shares), as Jets: value and Jacobian.
+    const auto model = [&](const auto& z) {
+      using T = typename std::decay_t<decltype(z)>::Scalar;
+      return f.residual<T>(Vec3<T>(z.template head<3>()), Vec3<T>(z.template segment<3>(3)),
+                           Eigen::Matrix<T, kWheels, 1>(z.template segment<kWheels>(6)),
+                           Vec2<T>(z.template tail<2>()));
     };
     EXPECT_LE((r - model(x)).cwiseAbs().maxCoeff(), 1e-12);
+    const Eigen::Matrix<double, 4, 14> Jjet = testing::autodiffJacobian<4, 14>(model, x);
     const Eigen::Matrix<double, 4, 14> Jn =
         testing::numericJacobian<4, 14>([&](const auto& z) { return eval(z, nullptr); }, x);
     const Eigen::Map<const Eigen::Matrix<double, 4, 14, Eigen::RowMajor>> J(Ja);
+    EXPECT_LE((J - Jjet).cwiseAbs().maxCoeff(), 1e-12 * std::max(1.0, Jjet.cwiseAbs().maxCoeff()))
+        << "wheel " << wheel << "\nanalytic:\n"
+        << J << "\nJet:\n"
+        << Jjet;
     EXPECT_LE((J - Jn).cwiseAbs().maxCoeff(), 1e-6 * std::max(1.0, Jn.cwiseAbs().maxCoeff()))
         << "wheel " << wheel << "\nanalytic:\n"
         << J << "\nnumeric:\n"
