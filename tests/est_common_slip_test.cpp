@@ -9,6 +9,7 @@
 
 #include <random>
 
+#include "support/ekf_state.h"
 #include "support/jacobian_check.h"
 #include "support/rocky7.h"
 #include "traverse/estimators/ekf.h"
@@ -37,28 +38,11 @@ io::RoverConfig commonSlipConfig() {
 }
 
 EkfState randomState(std::mt19937& rng) {
-  EkfState x;
-  x.q_site_body = randomUnitQuaternion(rng);
-  x.w_p = randomVector<3>(rng, 0.3);
-  x.p_site = randomVector<3>(rng, 5.0);
-  x.v_p = randomVector<3>(rng, 0.3);
-  x.xi = randomVector<kWheels>(rng, 0.4);
-  x.bias = randomVector<3>(rng, 0.02);
-  x.common_slip = randomVector<2>(rng, 0.03);
-  return x;
+  return testing::randomEkfState(rng, kWheels, true);
 }
 
-/// x̂ ⊞ δx in the filter's error coordinates (attitude on the body side).
 EkfState boxplus(const EkfState& x, const EkfVector& dx) {
-  EkfState y = x;
-  y.q_site_body = so3::boxplus(x.q_site_body, Vec3d(dx.segment<3>(I::kTheta)));
-  y.w_p += dx.segment<3>(I::kRate);
-  y.p_site += dx.segment<3>(I::kPos);
-  y.v_p += dx.segment<3>(I::kVel);
-  y.xi += dx.segment(I::kXi, kWheels);
-  y.bias += dx.segment<3>(I::kBias);
-  y.common_slip += dx.segment<2>(kC);
-  return y;
+  return testing::ekfBoxplus(x, dx);
 }
 
 EkfMatrix randomCovariance(std::mt19937& rng) {

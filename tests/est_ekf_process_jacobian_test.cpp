@@ -8,6 +8,7 @@
 #include <random>
 #include <sstream>
 
+#include "support/ekf_state.h"
 #include "support/jacobian_check.h"
 #include "support/rocky7.h"
 #include "traverse/estimators/ekf.h"
@@ -68,14 +69,7 @@ EkfOptions optionsFor(const Variant& v) {
 }
 
 EkfState randomState(std::mt19937& rng) {
-  EkfState x;
-  x.q_site_body = randomUnitQuaternion(rng);
-  x.w_p = randomVector<3>(rng, 0.3);
-  x.p_site = randomVector<3>(rng, 5.0);
-  x.v_p = randomVector<3>(rng, 0.3);
-  x.xi = randomVector<r7::kNumWheels>(rng, 0.4);
-  x.bias = randomVector<3>(rng, 0.02);
-  return x;
+  return testing::randomEkfState(rng, r7::kNumWheels);
 }
 
 EkfInputs randomInputs(std::mt19937& rng, const Variant& v, const EkfState& x, double g) {
@@ -119,16 +113,8 @@ Dynamics dynamics(const Ekf& ekf, const Variant& v, const io::RoverConfig& c, co
   return d;
 }
 
-/// x̂ ⊞ δx in the filter's error coordinates (attitude on the body side: q̂ ⊗ Exp(δθ)).
 EkfState boxplus(const EkfState& x, const EkfVector& dx) {
-  EkfState y = x;
-  y.q_site_body = so3::boxplus(x.q_site_body, Vec3d(dx.segment<3>(I::kTheta)));
-  y.w_p += dx.segment<3>(I::kRate);
-  y.p_site += dx.segment<3>(I::kPos);
-  y.v_p += dx.segment<3>(I::kVel);
-  y.xi += dx.segment(I::kXi, r7::kNumWheels);
-  y.bias += dx.segment<3>(I::kBias);
-  return y;
+  return testing::ekfBoxplus(x, dx);
 }
 
 /// d/dt of the error state δx(t) = x(t) ⊟ x̂(t) at t = 0 when the true state starts at
