@@ -260,18 +260,18 @@ TEST_F(IoCsv, SkipBadRowsCountsEachDroppedRow) {
       "6,0.3,0.4,0\n"
       "7,0.1";  // truncated
   ReadReport report;
-  const Stream s = read("sun.csv", text, ReadOptions{true}, &report);
+  const Stream s = read("sun.csv", text, ReadOptions{true, {}}, &report);
   ASSERT_EQ(s.size(), 2);
   EXPECT_EQ(s.t[1], 6.0);
   EXPECT_EQ(s.values(1, 1), 0.4);
   EXPECT_EQ(report.skipped_rows.at("sun.csv"), 8);
   EXPECT_EQ(report.totalSkipped(), 8);
-  read("sun.csv", text, ReadOptions{true}, &report);  // counts accumulate per file
+  read("sun.csv", text, ReadOptions{true, {}}, &report);  // counts accumulate per file
   EXPECT_EQ(report.totalSkipped(), 16);
 }
 
 TEST_F(IoCsv, SkipBadRowsStillStopsOnHeaderProblems) {
-  const ReadOptions skip{true};
+  const ReadOptions skip{true, {}};
   expectError("gyro.csv", "t,wq\n0,1\n", 1, {"unknown column 'wq'"}, skip);
   expectError("gyro.csv", "t,wz\n", 1, {"header only"}, skip);
   expectError("gyro.csv", "t,wz\n0,x\n1,y\n", 1, {"no usable data rows", "all 2 skipped"}, skip);
@@ -279,7 +279,7 @@ TEST_F(IoCsv, SkipBadRowsStillStopsOnHeaderProblems) {
 
 TEST_F(IoCsv, CleanReadReportsNothing) {
   ReadReport report;
-  read("gyro.csv", "t,wz\n0,1\n", ReadOptions{true}, &report);
+  read("gyro.csv", "t,wz\n0,1\n", ReadOptions{true, {}}, &report);
   EXPECT_TRUE(report.skipped_rows.empty());
   EXPECT_EQ(report.totalSkipped(), 0);
 }

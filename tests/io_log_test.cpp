@@ -149,7 +149,7 @@ TEST_F(IoLog, SkipBadRowsReportsPerFile) {
   write("gyro.csv", "t,wz\n0,0.01\n0.1,x\n-0.05,1\n0.2,0.03\n");
   write("joints.csv", kJointsHeader + "0,0,0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0\n");
   ReadReport report;
-  const TraverseLog log = readLog(dir_, ReadOptions{true}, &report);
+  const TraverseLog log = readLog(dir_, ReadOptions{true, {}}, &report);
   EXPECT_EQ(log.gyro.size(), 2);
   EXPECT_EQ(log.joints.size(), 1);
   EXPECT_EQ(report.skipped_rows.at("gyro.csv"), 2);

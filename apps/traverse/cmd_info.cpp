@@ -23,7 +23,7 @@ Command addInfoCommand(CLI::App& app, const GlobalOptions& global) {
     if (!*cmd) return -1;
     io::ReadReport report;
     const io::TraverseLog log =
-        io::readLog(opt->log_dir, io::ReadOptions{opt->skip_bad_rows}, &report);
+        io::readLog(opt->log_dir, io::ReadOptions{opt->skip_bad_rows, {}}, &report);
     if (!global.quiet) std::cout << io::formatSummary(io::summarize(log));
     for (const auto& [file, n] : report.skipped_rows) {
       if (n > 0)

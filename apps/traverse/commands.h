@@ -25,5 +25,6 @@ Command addSmoothCommand(CLI::App& app, const GlobalOptions& global);
 Command addRunCommand(CLI::App& app, const GlobalOptions& global);
 Command addBenchCommand(CLI::App& app, const GlobalOptions& global);
 Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global);
+Command addCalibrateCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace traverse::app

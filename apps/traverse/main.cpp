@@ -43,7 +43,7 @@ int main(int argc, char** argv) {
       app::addInfoCommand(app, global),     app::addEvaluateCommand(app, global),
       app::addSimulateCommand(app, global), app::addFilterCommand(app, global),
       app::addSmoothCommand(app, global),   app::addRunCommand(app, global),
-      app::addBenchCommand(app, global)};
+      app::addBenchCommand(app, global),    app::addCalibrateCommand(app, global)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -16,6 +16,9 @@ void addPipelineOptions(CLI::App& cmd, PipelineOptions& o) {
   cmd.add_option("-o,--output", o.out_dir, "Output directory")->required();
   cmd.add_flag("--skip-bad-rows", o.skip_bad_rows,
                "Drop malformed rows (counted) instead of stopping");
+  cmd.add_option(
+      "--calibration", o.calibration,
+      "rover.yaml overlay applied over the log's (the file `traverse calibrate` writes)");
   cmd.add_option("--initial-position", o.initial_position,
                  "Start position x y z in the site frame (m)")
       ->expected(3)
@@ -157,7 +160,8 @@ void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation
 pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global,
                                 bool smooth) {
   io::ReadReport report;
-  const io::TraverseLog log = io::readLog(o.log_dir, io::ReadOptions{o.skip_bad_rows}, &report);
+  const io::TraverseLog log =
+      io::readLog(o.log_dir, io::ReadOptions{o.skip_bad_rows, o.calibration}, &report);
   for (const auto& [file, n] : report.skipped_rows)
     std::cerr << file << ": skipped " << n << " bad rows\n";
   io::Diagnostics diagnostics = io::diagnose(log);

@@ -16,6 +16,7 @@ namespace traverse::app {
 struct PipelineOptions {
   std::string log_dir, out_dir;
   bool skip_bad_rows = false;
+  std::string calibration;  ///< rover.yaml overlay (traverse calibrate), empty: none
   std::vector<double> initial_position{0.0, 0.0, 0.0};
   std::string attitude_model = "gyro-driven";
   std::string velocity_model = "auto";

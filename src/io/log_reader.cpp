@@ -76,7 +76,7 @@ TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport*
   for (const char* name : {"rover.yaml", "gyro.csv", "joints.csv"}) requireFile(dir / name);
   TraverseLog log;
   log.dir = dir;
-  log.config = loadRoverConfig(dir / "rover.yaml");
+  log.config = loadRoverConfig(dir / "rover.yaml", options.rover_overlay);
   const fs::path urdf = dir / log.config.urdf_file;
   requireFile(urdf);
   // Read here (not by loadRoverGeometry) for the size limit and the binary check.

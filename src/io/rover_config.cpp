@@ -131,6 +131,13 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
     c.skid_steer = k;
   }
 
+  const YAML::Node od =
+      r.section(root, "odometry", {"wheel_radius_scale_left", "wheel_radius_scale_right"});
+  c.odometry.wheel_radius_scale_left = r.number(od, "odometry", "wheel_radius_scale_left",
+                                                c.odometry.wheel_radius_scale_left, 0.5, 2.0);
+  c.odometry.wheel_radius_scale_right = r.number(od, "odometry", "wheel_radius_scale_right",
+                                                 c.odometry.wheel_radius_scale_right, 0.5, 2.0);
+
   const YAML::Node p =
       r.section(root, "process",
                 {"contact_angle_time_constant_s", "contact_angle_noise_rad_per_sqrt_s",
@@ -186,20 +193,59 @@ RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file) {
   return parseRoverConfig(readInputFile(yaml_file), file);
 }
 
-RoverConfig parseRoverConfig(const std::string& text, const std::string& file) {
-  YAML::Node root;
+namespace {
+
+YAML::Node loadYaml(const std::string& text, const std::string& file) {
   try {
     rejectBinary(text, file);
-    root = YAML::Load(text);
+    return YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw InputError(file, e.mark.is_null() ? 0 : e.mark.line + 1, "unreadable YAML: " + e.msg);
   }
+}
+
+RoverConfig parseRoverNode(const YAML::Node& root, const std::string& file);
+
+/// `base` with `overlay`'s keys: mappings merged key by key, any other node replaced whole.
+YAML::Node merged(const YAML::Node& base, const YAML::Node& overlay) {
+  if (!base.IsMap() || !overlay.IsMap()) return YAML::Clone(overlay);
+  YAML::Node out = YAML::Clone(base);
+  for (const auto& kv : overlay) {
+    const std::string key = kv.first.as<std::string>();
+    const YAML::Node b = base[key];
+    out[key] = b.IsDefined() ? merged(b, kv.second) : YAML::Clone(kv.second);
+  }
+  return out;
+}
+
+}  // namespace
+
+RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file,
+                            const std::filesystem::path& overlay) {
+  if (overlay.empty()) return loadRoverConfig(yaml_file);
+  const std::string file = yaml_file.string(), ofile = overlay.string();
+  if (!std::filesystem::exists(yaml_file)) throw InputError(file, 0, "required file is missing");
+  if (!std::filesystem::exists(overlay)) throw InputError(ofile, 0, "overlay file not found");
+  const YAML::Node base = loadYaml(readInputFile(yaml_file), file);
+  const YAML::Node over = loadYaml(readInputFile(overlay), ofile);
+  parseRoverNode(base, file);  // each valid on its own: errors name their own file and line
+  parseRoverNode(over, ofile);
+  return parseRoverNode(merged(base, over), file + " + " + ofile);
+}
+
+RoverConfig parseRoverConfig(const std::string& text, const std::string& file) {
+  return parseRoverNode(loadYaml(text, file), file);
+}
+
+namespace {
+
+RoverConfig parseRoverNode(const YAML::Node& root, const std::string& file) {
   YamlReader r(file);
   if (!root.IsMap()) throw InputError(file, 0, "expected a YAML mapping at the top level");
   r.onlyKeys(root, "",
              {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro",
-              "sun_sensor", "accelerometer", "sun", "slip_noise", "skid_steer", "process",
-              "joint_sensors", "smoother", "gps"});
+              "sun_sensor", "accelerometer", "sun", "slip_noise", "skid_steer", "odometry",
+              "process", "joint_sensors", "smoother", "gps"});
   RoverConfig c;
   if (!root["format"].IsDefined()) throw InputError(file, 0, "key 'format': missing (expected 1)");
   c.format = r.integer(root, "", "format", 0, 0, 1000);
@@ -230,6 +276,8 @@ RoverConfig parseRoverConfig(const std::string& text, const std::string& file) {
   c.gps.antenna_body_m = r.vec3(gps, "gps", "antenna_body_m", c.gps.antenna_body_m);
   return c;
 }
+
+}  // namespace
 
 namespace {
 /// Shortest text that reads back to the same double (std::to_chars), as a plain YAML scalar.
@@ -303,6 +351,12 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
     out << YAML::Key << "skid_steer" << YAML::Value << YAML::BeginMap << YAML::Key << "icr_y_left_m"
         << YAML::Value << num(c.skid_steer->icr_y_left_m) << YAML::Key << "icr_y_right_m"
         << YAML::Value << num(c.skid_steer->icr_y_right_m) << YAML::EndMap;
+  }
+  if (!c.odometry.isDefault()) {  // absent = the default: existing files unchanged
+    out << YAML::Key << "odometry" << YAML::Value << YAML::BeginMap << YAML::Key
+        << "wheel_radius_scale_left" << YAML::Value << num(c.odometry.wheel_radius_scale_left)
+        << YAML::Key << "wheel_radius_scale_right" << YAML::Value
+        << num(c.odometry.wheel_radius_scale_right) << YAML::EndMap;
   }
   const auto& p = c.process;
   out << YAML::Key << "process" << YAML::Value << YAML::BeginMap << YAML::Key

@@ -245,6 +245,15 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       w.steered |= c >= 0 && geo.coords[static_cast<size_t>(c)].kind == rover::CoordKind::kSteering;
     }
   }
+  if (!config.odometry.isDefault()) {  // calibrated rolling radii (io::OdometryConfig)
+    const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
+    const double left = config.odometry.wheel_radius_scale_left;
+    const double right = config.odometry.wheel_radius_scale_right;
+    for (int w = 0; w < geo.numWheels(); ++w) {
+      const double y = kin[w].T_body_wheel.p.y();
+      geo.wheels[w].radius *= y > 1e-6 ? left : y < -1e-6 ? right : 0.5 * (left + right);
+    }
+  }
   if (config.skid_steer) {
     const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
     for (int w = 0; w < geo.numWheels(); ++w) {

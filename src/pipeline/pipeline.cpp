@@ -96,9 +96,8 @@ io::TraverseLog withoutStuckWheels(const io::TraverseLog& log, const io::Diagnos
   return out;
 }
 
-Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
-                   const io::Diagnostics* diagnostics) {
-  Estimates e;
+io::TraverseLog screenedLog(const io::TraverseLog& input, const PipelineConfig& config,
+                            const io::Diagnostics* diagnostics, Estimates& e) {
   io::TraverseLog screened = input;
   if (config.reject_spikes || config.drop_stuck_wheels) {
     const io::Diagnostics found = diagnostics ? io::Diagnostics{} : io::diagnose(input);
@@ -113,6 +112,13 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
     if (e.joints_clock.significant) e.joints_shift_s = -e.joints_clock.offset_s;
   }
   if (e.joints_shift_s != 0.0) screened = est::withJointsShifted(screened, -e.joints_shift_s);
+  return screened;
+}
+
+Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
+                   const io::Diagnostics* diagnostics) {
+  Estimates e;
+  const io::TraverseLog screened = screenedLog(input, config, diagnostics, e);
   const io::TraverseLog& log = screened;
   e.segmentation = est::segment(log, config.segmentation);
   e.init = est::initialState(log, e.segmentation, config.init);

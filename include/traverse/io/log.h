@@ -89,6 +89,9 @@ inline std::array<NamedStream, 7> logStreams(const TraverseLog& log) {
 
 struct ReadOptions {
   bool skip_bad_rows = false;  ///< count and drop malformed rows instead of stopping
+  /// A rover.yaml overlay applied over the log's own (io::loadRoverConfig; empty: none), e.g.
+  /// the odometry calibration `traverse calibrate` writes.
+  std::filesystem::path rover_overlay;
 };
 
 /// What a read skipped (per file name), when ReadOptions::skip_bad_rows is set.

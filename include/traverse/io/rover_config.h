@@ -92,6 +92,18 @@ struct SkidSteerConfig {
   double icr_y_right_m = 0.0;  ///< < 0
 };
 
+/// Odometry calibration (`traverse calibrate` fits it): the effective rolling radius of the
+/// wheels on each side is the URDF's radius times this scale (a wheel on the body's centre line
+/// takes the mean of the two). Applied where the URDF is read (io::parseRoverGeometry), so dead
+/// reckoning, EKF, smoother and simulator all see the same radii.
+struct OdometryConfig {
+  double wheel_radius_scale_left = 1.0;   ///< wheels at body y > 0 (zero joint angles)
+  double wheel_radius_scale_right = 1.0;  ///< wheels at body y < 0
+  bool isDefault() const {
+    return wheel_radius_scale_left == 1.0 && wheel_radius_scale_right == 1.0;
+  }
+};
+
 struct SmootherConfig {
   std::optional<std::string> loss;   ///< robust loss on sun and slip: huber, cauchy, none
   std::optional<double> loss_scale;  ///< in standard deviations
@@ -107,6 +119,7 @@ struct RoverConfig {
   std::vector<std::pair<std::string, std::string>> joint_names;
   std::optional<double> turn_centre_x_m;  ///< default: mean x of the unsteered wheels
   std::optional<SkidSteerConfig> skid_steer;
+  OdometryConfig odometry;
   double gravity_mps2 = 9.80665;
   GyroConfig gyro;
   SunSensorConfig sun_sensor;
@@ -121,6 +134,13 @@ struct RoverConfig {
 
 /// Reads and validates rover.yaml (errors: InputError naming file and key).
 RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file);
+/// rover.yaml with an overlay applied (`traverse run --calibration FILE`, the file
+/// `traverse calibrate` writes): the overlay is a rover.yaml of its own (`format: 1`, any subset
+/// of the keys) whose keys replace the base file's — mappings merge key by key, anything else
+/// (numbers, lists) is replaced whole. The overlay is validated on its own first, so an error in
+/// it names the overlay's file and line. An empty `overlay` path: the base file alone.
+RoverConfig loadRoverConfig(const std::filesystem::path& yaml_file,
+                            const std::filesystem::path& overlay);
 /// Same, from rover.yaml text in memory (`file` names it in errors).
 RoverConfig parseRoverConfig(const std::string& yaml_text, const std::string& file);
 /// Writes a rover.yaml that loadRoverConfig reads back to the same values.

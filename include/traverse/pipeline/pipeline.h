@@ -81,6 +81,11 @@ io::TraverseLog withoutSpikes(const io::TraverseLog& log, const io::Diagnostics&
 io::TraverseLog withoutStuckWheels(const io::TraverseLog& log, const io::Diagnostics& diagnostics,
                                    std::vector<io::Finding>* rejected = nullptr);
 
+/// The log the estimators are given (the first steps of estimate): without its spikes and stuck
+/// wheels (as `config` asks) and with joints.csv's clock aligned; fills e.rejected,
+/// e.joints_clock and e.joints_shift_s. `diagnostics` as for estimate.
+io::TraverseLog screenedLog(const io::TraverseLog& log, const PipelineConfig& config,
+                            const io::Diagnostics* diagnostics, Estimates& e);
 /// `diagnostics`: io::diagnose(log) when the caller has it already (it is computed otherwise).
 Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {},
                    const io::Diagnostics* diagnostics = nullptr);
