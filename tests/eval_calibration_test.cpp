@@ -52,13 +52,8 @@ fs::path tempDir(const std::string& name) {
 /// The calibration of `log` along its own dead reckoning (as `traverse calibrate` does it).
 eval::OdometryCalibration calibrate(const io::TraverseLog& input,
                                     const eval::CalibrationOptions& options = {}) {
-  const pipeline::PipelineConfig config;
-  pipeline::Estimates e;
-  const io::TraverseLog log = pipeline::screenedLog(input, config, nullptr, e);
-  const est::Segmentation seg = est::segment(log, config.segmentation);
-  const est::InitialState init = est::initialState(log, seg, config.init);
-  const est::Trajectory dr = est::deadReckoning(log, seg, init, config.dead_reckoning);
-  return eval::calibrateOdometry(log, dr, seg, options);
+  const pipeline::ScreenedDeadReckoning o = pipeline::screenedDeadReckoning(input);
+  return eval::calibrateOdometry(o.log, o.dr, o.segmentation, options);
 }
 
 const eval::CalibratedParameter& param(const eval::OdometryCalibration& c, const std::string& key) {

@@ -46,16 +46,11 @@ Command addCalibrateCommand(CLI::App& app, const GlobalOptions& global) {
     ro.skip_bad_rows = opt->skip_bad_rows;
     ro.rover_overlay = opt->calibration;
     const io::TraverseLog input = io::readLog(opt->log_dir, ro);
-    // The log the estimators see (spikes, stuck wheels, joints clock), and its dead reckoning.
-    const pipeline::PipelineConfig config;
-    pipeline::Estimates e;
-    const io::TraverseLog log = pipeline::screenedLog(input, config, nullptr, e);
-    const est::Segmentation seg = est::segment(log, config.segmentation);
-    const est::InitialState init = est::initialState(log, seg, config.init);
-    const est::Trajectory dr = est::deadReckoning(log, seg, init, config.dead_reckoning);
+    // Along the dead reckoning of the log the estimators see (spikes, stuck wheels, clock).
+    const pipeline::ScreenedDeadReckoning o = pipeline::screenedDeadReckoning(input);
     eval::CalibrationOptions fit = opt->fit;
     fit.fit_icr = !opt->no_icr;
-    const eval::OdometryCalibration c = eval::calibrateOdometry(log, dr, seg, fit);
+    const eval::OdometryCalibration c = eval::calibrateOdometry(o.log, o.dr, o.segmentation, fit);
     const std::string text = eval::calibrationOverlay(c, opt->log_dir);
     io::parseRoverConfig(text, opt->out);  // the overlay reads back (a bug otherwise)
     io::writeFileAtomically(opt->out, text);

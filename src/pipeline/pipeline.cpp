@@ -115,6 +115,16 @@ io::TraverseLog screenedLog(const io::TraverseLog& input, const PipelineConfig& 
   return screened;
 }
 
+ScreenedDeadReckoning screenedDeadReckoning(const io::TraverseLog& input,
+                                            const PipelineConfig& config) {
+  Estimates e;
+  ScreenedDeadReckoning out{screenedLog(input, config, nullptr, e), {}, {}};
+  out.segmentation = est::segment(out.log, config.segmentation);
+  const InitialState init = est::initialState(out.log, out.segmentation, config.init);
+  out.dr = est::deadReckoning(out.log, out.segmentation, init, config.dead_reckoning);
+  return out;
+}
+
 Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
                    const io::Diagnostics* diagnostics) {
   Estimates e;

@@ -86,6 +86,15 @@ io::TraverseLog withoutStuckWheels(const io::TraverseLog& log, const io::Diagnos
 /// e.joints_clock and e.joints_shift_s. `diagnostics` as for estimate.
 io::TraverseLog screenedLog(const io::TraverseLog& log, const PipelineConfig& config,
                             const io::Diagnostics* diagnostics, Estimates& e);
+/// The screened log (screenedLog), its segmentation and its dead reckoning: what
+/// eval::calibrateOdometry fits along (`traverse calibrate`).
+struct ScreenedDeadReckoning {
+  io::TraverseLog log;
+  Segmentation segmentation;
+  Trajectory dr;
+};
+ScreenedDeadReckoning screenedDeadReckoning(const io::TraverseLog& log,
+                                            const PipelineConfig& config = {});
 /// `diagnostics`: io::diagnose(log) when the caller has it already (it is computed otherwise).
 Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {},
                    const io::Diagnostics* diagnostics = nullptr);
