@@ -69,6 +69,19 @@ TEST_F(IoRoverConfig, CommonSlipIsReadAndNeedsBothAxes) {
   expectError("format: 1\nslip_noise:\n  common_time_constant_s: 0\n", 3, "common_time_constant_s");
 }
 
+TEST_F(IoRoverConfig, GyroRatePerturbationIsOptionalAndSaved) {
+  EXPECT_FALSE(loadRoverConfig(write("format: 1\n")).gyro.rate_perturbation_rad_s2_per_sqrt_hz);
+  const RoverConfig c =
+      loadRoverConfig(write("format: 1\ngyro:\n  rate_perturbation_rad_s2_per_sqrt_hz: 5e-4\n"));
+  ASSERT_TRUE(c.gyro.rate_perturbation_rad_s2_per_sqrt_hz);
+  EXPECT_EQ(*c.gyro.rate_perturbation_rad_s2_per_sqrt_hz, 5e-4);
+  const std::filesystem::path saved = dir_ / "saved.yaml";
+  saveRoverConfig(saved, c);
+  EXPECT_EQ(*loadRoverConfig(saved).gyro.rate_perturbation_rad_s2_per_sqrt_hz, 5e-4);
+  expectError("format: 1\ngyro:\n  rate_perturbation_rad_s2_per_sqrt_hz: -1\n", 3,
+              "rate_perturbation_rad_s2_per_sqrt_hz");
+}
+
 TEST_F(IoRoverConfig, MissingKeysTakeDefaults) {
   const RoverConfig c = loadRoverConfig(write("format: 1\n"));
   const RoverConfig d;

@@ -215,7 +215,9 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   const Mat3d S = gyroAxes(in);
   for (int a = 0; a < 3; ++a) {
     const bool measured = hybrid && S(a, a) > 0;
-    qc[I::kRate + a] = std::pow(measured ? n_w * options_.rate_noise_scale_measured_axes : n_w, 2);
+    const double n_measured = config_.gyro.rate_perturbation_rad_s2_per_sqrt_hz.value_or(
+        n_w * options_.rate_noise_scale_measured_axes);
+    qc[I::kRate + a] = std::pow(measured ? n_measured : n_w, 2);
     // A gyro-driven axis inherits the gyro's white noise (density σ² Δt at its sample period).
     if (measured)
       qc[I::kTheta + a] = config_.gyro.noise_rad_s * config_.gyro.noise_rad_s * gyro_period_;

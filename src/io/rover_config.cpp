@@ -21,9 +21,10 @@ namespace {
 using detail::YamlReader;
 
 void readGyro(const YamlReader& r, const YAML::Node& root, GyroConfig& g) {
-  const YAML::Node n = r.section(
-      root, "gyro",
-      {"axes", "noise_rad_s", "bias_random_walk_rad_s_per_sqrt_s", "initial_bias_sigma_rad_s"});
+  const YAML::Node n =
+      r.section(root, "gyro",
+                {"axes", "noise_rad_s", "bias_random_walk_rad_s_per_sqrt_s",
+                 "initial_bias_sigma_rad_s", "rate_perturbation_rad_s2_per_sqrt_hz"});
   const std::string axes =
       r.string(n, "gyro", "axes", g.axes == GyroAxes::kThreeAxis ? "xyz" : "z");
   if (axes == "z") {
@@ -38,6 +39,9 @@ void readGyro(const YamlReader& r, const YAML::Node& root, GyroConfig& g) {
                                                  g.bias_random_walk_rad_s_per_sqrt_s, 0.0, 1.0);
   g.initial_bias_sigma_rad_s =
       r.number(n, "gyro", "initial_bias_sigma_rad_s", g.initial_bias_sigma_rad_s, 0.0, 1.0);
+  if (n["rate_perturbation_rad_s2_per_sqrt_hz"].IsDefined())
+    g.rate_perturbation_rad_s2_per_sqrt_hz =
+        r.number(n, "gyro", "rate_perturbation_rad_s2_per_sqrt_hz", 0.0, 0.0, 100.0);
 }
 
 void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
@@ -309,8 +313,11 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
       << (c.gyro.axes == GyroAxes::kThreeAxis ? "xyz" : "z") << YAML::Key << "noise_rad_s"
       << YAML::Value << num(c.gyro.noise_rad_s) << YAML::Key << "bias_random_walk_rad_s_per_sqrt_s"
       << YAML::Value << num(c.gyro.bias_random_walk_rad_s_per_sqrt_s) << YAML::Key
-      << "initial_bias_sigma_rad_s" << YAML::Value << num(c.gyro.initial_bias_sigma_rad_s)
-      << YAML::EndMap;
+      << "initial_bias_sigma_rad_s" << YAML::Value << num(c.gyro.initial_bias_sigma_rad_s);
+  if (c.gyro.rate_perturbation_rad_s2_per_sqrt_hz)  // absent = the default: files unchanged
+    out << YAML::Key << "rate_perturbation_rad_s2_per_sqrt_hz" << YAML::Value
+        << num(*c.gyro.rate_perturbation_rad_s2_per_sqrt_hz);
+  out << YAML::EndMap;
   out << YAML::Key << "sun_sensor" << YAML::Value << YAML::BeginMap << YAML::Key
       << "mounting_rpy_rad" << YAML::Value;
   vec(so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));

@@ -72,8 +72,10 @@ struct EkfOptions {
   double common_slip_jump_probability = 0.999;
   bool common_slip_jumps = true;  ///< the jump test (off: c is only the Gauss–Markov process)
   double zero_velocity_sigma_mps = 0.001;
-  double zero_rate_sigma_rad_s = 1e-4;          ///< added to the gyro noise
-  double rate_noise_scale_measured_axes = 0.1;  ///< n_ω on gyro-driven axes is small (O §2.2.1)
+  double zero_rate_sigma_rad_s = 1e-4;  ///< added to the gyro noise
+  /// n_ω on gyro-driven axes is small (O §2.2.1): this times the process rate noise, unless
+  /// rover.yaml gives gyro.rate_perturbation_rad_s2_per_sqrt_hz.
+  double rate_noise_scale_measured_axes = 0.1;
   double initial_velocity_sigma_mps = 0.01;
   double initial_rate_sigma_rad_s = 0.01;
   double initial_contact_sigma_rad = 0.1;

@@ -24,6 +24,12 @@ struct GyroConfig {
   double noise_rad_s = 0.0031;             ///< white noise, 1σ per sample (R §4.3: 0.0031 rad/s)
   double bias_random_walk_rad_s_per_sqrt_s = 1e-5;  ///< bias random walk density (K-9)
   double initial_bias_sigma_rad_s = 0.005;          ///< prior σ of the bias before any rest
+  /// Density of the EKF's rate perturbation ω_p on the gyro's measured axes (rad/s²/√Hz, with
+  /// process.rate_time_constant_s): how far the body rate may depart from the bias-corrected
+  /// gyro beyond its white noise — its scale and misalignment errors. Unset: 0.1 × the process
+  /// rate noise (O §2.2.1: "small"). A good gyro wants it far smaller: every other row that
+  /// sees ω (a skid-steer rover's slip rows in a turn) can pull the rate that far.
+  std::optional<double> rate_perturbation_rad_s2_per_sqrt_hz;
 };
 
 struct SunSensorConfig {
