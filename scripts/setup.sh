@@ -5,7 +5,9 @@ set -euo pipefail
 pkgs=(build-essential cmake ninja-build pkg-config
       libceres-dev libeigen3-dev libsuitesparse-dev libcli11-dev
       libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev liburdfdom-dev
+      nlohmann-json3-dev
       python3-h5py python3-numpy
+      chromium  # the report test renders report.html headless (tests/report_test.cpp)
       clang libclang-rt-14-dev)  # the fuzz preset: clang and its libFuzzer (.ci/run runs it)
 missing=()
 for p in "${pkgs[@]}"; do

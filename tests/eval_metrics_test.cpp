@@ -12,13 +12,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "traverse/core/error.h"
 #include "traverse/core/so3.h"
 #include "traverse/estimators/trajectory.h"
 #include "traverse/eval/aggregate.h"
 #include "traverse/eval/alignment.h"
-#include "traverse/eval/json.h"
 #include "traverse/eval/metrics.h"
 #include "traverse/io/csv.h"
+#include "traverse/io/diagnostics.h"
 
 namespace traverse::eval {
 namespace {
@@ -28,6 +29,7 @@ using ::testing::ElementsAre;
 using ::testing::ElementsAreArray;
 using ::testing::HasSubstr;
 using ::testing::Not;
+using ::testing::StartsWith;
 
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kTol = 1e-9;
@@ -376,13 +378,56 @@ TEST(EvalMetrics, EvaluateAllNamesSmootherAndMeasuresPath) {
 
 // --- JSON ------------------------------------------------------------------------------------
 
-TEST(EvalJson, NumbersRoundTripAndNonFiniteIsNull) {
-  EXPECT_EQ(jsonNumber(0.1), "0.1");
-  EXPECT_EQ(jsonNumber(3.0), "3");
-  EXPECT_EQ(jsonNumber(1e300), "1e+300");
-  EXPECT_EQ(jsonNumber(std::numeric_limits<double>::quiet_NaN()), "null");
-  EXPECT_EQ(jsonNumber(-std::numeric_limits<double>::infinity()), "null");
-  EXPECT_EQ(jsonString("a\"b\\c\n\x01 é"), "\"a\\\"b\\\\c\\n\\u0001 é\"");
+TEST(EvalJson, MetricsReportRoundTripsThroughTheReader) {
+  MetricsReport r{"lo\"g\n", 12.25, {}};
+  r.estimators.push_back({"dr", {{{"final_position_error_m", 0.1}, {"x", 1e300}}}});
+  r.estimators.push_back({"ekf", {{{"nees", std::numeric_limits<double>::quiet_NaN()}}}});
+  io::Diagnostics d;
+  io::Finding f;
+  f.file = "gyro.csv", f.kind = "spike", f.t = 3.25, f.column = "wz", f.value = -2.0;
+  f.message = "spike of 2 rad/s", f.not_used = true;
+  d.findings.push_back(f);
+  f = io::Finding{};
+  f.file = "joints.csv", f.kind = "gap", f.t = 5, f.duration_s = 15, f.message = "gap";
+  d.findings.push_back(f);
+  r.diagnostics = d;
+  r.run = RunSummary{100.5, 33.0, 7, 6, 1, 12.5};
+  const MetricsReport back = parseMetricsJson(formatMetricsJson(r), "m.json");
+  EXPECT_EQ(back.log, r.log);
+  EXPECT_EQ(back.path_length_m, 12.25);
+  ASSERT_EQ(back.estimators.size(), 2u);
+  EXPECT_EQ(back.estimators[0].estimator, "dr");
+  EXPECT_EQ(back.estimators[0].metrics.get("final_position_error_m"), 0.1);  // exact: round trip
+  EXPECT_EQ(back.estimators[0].metrics.get("x"), 1e300);
+  EXPECT_TRUE(std::isnan(*back.estimators[1].metrics.get("nees")));  // written as null
+  ASSERT_TRUE(back.diagnostics && back.diagnostics->findings.size() == 2u);
+  EXPECT_EQ(back.diagnostics->findings[0].column, "wz");
+  EXPECT_EQ(back.diagnostics->findings[0].value, -2.0);
+  EXPECT_TRUE(back.diagnostics->findings[0].not_used);
+  EXPECT_EQ(back.diagnostics->findings[1].duration_s, 15.0);
+  EXPECT_FALSE(back.diagnostics->findings[1].not_used);
+  ASSERT_TRUE(back.run);
+  EXPECT_EQ(back.run->duration_s, 100.5);
+  EXPECT_EQ(back.run->segments, 7);
+  EXPECT_EQ(back.run->smoother_fallbacks, 1);
+  EXPECT_EQ(back.run->slip_updates_gated_pct, 12.5);
+  // Without truth: no estimators, evaluated false.
+  MetricsReport none;
+  none.log = "x", none.evaluated = false;
+  EXPECT_FALSE(parseMetricsJson(formatMetricsJson(none), "m.json").evaluated);
+}
+
+TEST(EvalJson, AReaderNamesTheFileOfABadDocument) {
+  for (const std::string bad : {"{", "[]", "{\"log\": 3}",
+                                "{\"log\": \"a\", \"estimators\": {\"dr\": {\"x\": \"y\"}}, "
+                                "\"path_length_m\": 1}"}) {
+    try {
+      parseMetricsJson(bad, "out/a/metrics.json");
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const InputError& e) {
+      EXPECT_THAT(std::string(e.what()), StartsWith("out/a/metrics.json: ")) << bad;
+    }
+  }
 }
 
 TEST(EvalJson, MetricsReportExactText) {
@@ -398,7 +443,7 @@ TEST(EvalJson, MetricsReportExactText) {
             "  \"estimators\": {\n"
             "    \"dr\": {\n"
             "      \"final_position_error_m\": 0.25,\n"
-            "      \"nees_dof\": 3\n"
+            "      \"nees_dof\": 3.0\n"
             "    },\n"
             "    \"smoother\": {\n"
             "      \"yaw_rmse_deg\": null\n"
@@ -447,9 +492,18 @@ TEST(EvalAggregate, AccuracyJsonExactTextAndTable) {
             "  \"runs\": 2,\n"
             "  \"estimators\": {\n"
             "    \"ekf\": {\n"
-            "      \"final_position_error_m\": {\"mean\": 2, \"std\": 1.4142135623730951, "
-            "\"median\": 2, \"max\": 3},\n"
-            "      \"rpe_pct_per_m\": {\"mean\": 5, \"std\": null, \"median\": 5, \"max\": 5}\n"
+            "      \"final_position_error_m\": {\n"
+            "        \"mean\": 2.0,\n"
+            "        \"std\": 1.4142135623730951,\n"
+            "        \"median\": 2.0,\n"
+            "        \"max\": 3.0\n"
+            "      },\n"
+            "      \"rpe_pct_per_m\": {\n"
+            "        \"mean\": 5.0,\n"
+            "        \"std\": null,\n"
+            "        \"median\": 5.0,\n"
+            "        \"max\": 5.0\n"
+            "      }\n"
             "    }\n"
             "  }\n"
             "}\n");
@@ -502,9 +556,9 @@ TEST_F(EvalCli, EvaluateWritesMetricsJson) {
   EXPECT_THAT(out, HasSubstr("position_rmse_m"));
   const std::string json = slurp(out_ / "metrics.json");
   EXPECT_THAT(json, HasSubstr("\"log\": \"tiny-log\""));
-  EXPECT_THAT(json, HasSubstr("\"path_length_m\": 3,"));
+  EXPECT_THAT(json, HasSubstr("\"path_length_m\": 3.0,"));
   EXPECT_THAT(json, HasSubstr("\"smoother\": {"));
-  EXPECT_THAT(json, HasSubstr("\"final_position_error_m\": 0,"));
+  EXPECT_THAT(json, HasSubstr("\"final_position_error_m\": 0.0,"));
   EXPECT_THAT(json, Not(HasSubstr("\"dr\"")));
   ASSERT_EQ(run("--quiet evaluate " + out_.string() + " --truth " + log_.string()), 0) << err;
   EXPECT_EQ(out, "");

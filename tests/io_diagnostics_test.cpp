@@ -287,11 +287,12 @@ TEST(IoDiagnostics, MetricsJsonHasTheDiagnosticsBlock) {
   const std::string json = eval::formatMetricsJson(report);
   EXPECT_THAT(json, Not(HasSubstr("estimators")));
   EXPECT_THAT(json, HasSubstr("\"diagnostics\": {"));
-  EXPECT_THAT(json, HasSubstr("\"counts\": {\"gap\": 1, \"time_order\": 0,"));
-  EXPECT_THAT(json, HasSubstr("\"by_file\": {\n      \"gyro.csv\": {\"gap\": 1}"));
-  EXPECT_THAT(json, HasSubstr("\"findings\": [\n      {\"file\": \"gyro.csv\", \"kind\": \"gap\", "
-                              "\"t\": 5, \"duration_s\": 15, \"message\": \"gap of 15.0 s at "
-                              "t=5.0\"}\n    ]"));
+  EXPECT_THAT(json, HasSubstr("\"counts\": {\n      \"gap\": 1,\n      \"time_order\": 0,"));
+  EXPECT_THAT(json, HasSubstr("\"by_file\": {\n      \"gyro.csv\": {\n        \"gap\": 1\n"));
+  EXPECT_THAT(json, HasSubstr("\"findings\": [\n      {\n        \"file\": \"gyro.csv\",\n"
+                              "        \"kind\": \"gap\",\n        \"t\": 5.0,\n"
+                              "        \"duration_s\": 15.0,\n"
+                              "        \"message\": \"gap of 15.0 s at t=5.0\"\n      }\n    ]"));
 }
 
 }  // namespace

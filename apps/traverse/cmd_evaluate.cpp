@@ -91,6 +91,13 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
       }
     }
     const fs::path json = out_dir / "metrics.json";
+    // The run block the estimating run wrote (what it did, not how well) is kept.
+    if (fs::exists(json)) {
+      try {
+        report.run = eval::readMetricsJson(json).run;
+      } catch (const InputError&) {  // a damaged file is replaced, as before
+      }
+    }
     eval::writeMetricsJson(json, report);
     if (!global.quiet)
       std::cout << eval::formatMetricsTable(report) << "wrote " << json.string() << "\n";

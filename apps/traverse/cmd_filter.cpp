@@ -14,8 +14,7 @@ Command addFilterCommand(CLI::App& app, const GlobalOptions& global) {
   addPipelineOptions(*cmd, *opt);
   return [cmd, opt, &global]() {
     if (!*cmd) return -1;
-    runPipeline(*opt, global, /*smooth=*/false);
-    return 0;
+    return runLogs(*opt, global, /*smooth=*/false);
   };
 }
 

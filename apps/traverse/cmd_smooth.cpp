@@ -17,8 +17,7 @@ Command addSmoothingCommand(CLI::App& app, const GlobalOptions& global, const ch
   addSmootherOptions(*cmd, *opt);
   return [cmd, opt, &global]() {
     if (!*cmd) return -1;
-    runPipeline(*opt, global, /*smooth=*/true);
-    return 0;
+    return runLogs(*opt, global, /*smooth=*/true);
   };
 }
 

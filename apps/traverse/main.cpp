@@ -5,6 +5,7 @@
 
 #include <glog/logging.h>
 
+#include "batch.h"
 #include "commands.h"
 #include "traverse/core/error.h"
 #include "traverse/core/memory.h"
@@ -43,7 +44,8 @@ int main(int argc, char** argv) {
       app::addInfoCommand(app, global),     app::addEvaluateCommand(app, global),
       app::addSimulateCommand(app, global), app::addFilterCommand(app, global),
       app::addSmoothCommand(app, global),   app::addRunCommand(app, global),
-      app::addBenchCommand(app, global),    app::addCalibrateCommand(app, global)};
+      app::addBenchCommand(app, global),    app::addCalibrateCommand(app, global),
+      app::addSummarizeCommand(app, global)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

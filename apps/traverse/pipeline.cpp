@@ -1,8 +1,11 @@
 #include "pipeline.h"
 
+#include "batch.h"
+
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 
 #include "traverse/eval/metrics.h"
 #include "traverse/eval/position_truth.h"
@@ -12,8 +15,19 @@
 namespace traverse::app {
 
 void addPipelineOptions(CLI::App& cmd, PipelineOptions& o) {
-  cmd.add_option("LOGDIR", o.log_dir, "Log directory (docs/log-format.md)")->required();
+  cmd.add_option("LOGDIR", o.log_dirs,
+                 "Log directories (docs/log-format.md); with several, each goes to "
+                 "OUTDIR/<its name>/ and OUTDIR/summary.csv lists them")
+      ->required();
   cmd.add_option("-o,--output", o.out_dir, "Output directory")->required();
+  cmd.add_option("-j,--jobs", o.jobs, "Logs run in parallel, each its own process (0: all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd.add_flag("--force", o.force,
+               "Several logs: run a log even when its outputs are newer than its inputs");
+  cmd.add_flag("--batch", o.batch,
+               "OUTDIR/<log name>/, status.json and summary.csv even for one log (one log per "
+               "cluster task into a shared OUTDIR; `traverse summarize` then lists them all)");
   cmd.add_flag("--skip-bad-rows", o.skip_bad_rows,
                "Drop malformed rows (counted) instead of stopping");
   cmd.add_option(
@@ -134,8 +148,8 @@ namespace {
 /// gps.csv (docs/evaluation.md). Nothing without either.
 void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation& seg,
                              const std::vector<est::Trajectory>& trajectories,
-                             const io::Diagnostics& diagnostics, const PipelineOptions& o,
-                             const GlobalOptions& global) {
+                             const io::Diagnostics& diagnostics, const eval::RunSummary& run,
+                             const PipelineOptions& o, const GlobalOptions& global) {
   const auto dir_name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
   const std::string name = dir_name.empty() ? o.log_dir : dir_name;
   eval::MetricsReport report;
@@ -151,11 +165,53 @@ void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation
         name, trajectories, eval::PositionTruth(*log.gps, log.config.gps.antenna_body_m));
   }
   report.diagnostics = diagnostics;
+  report.run = run;
   eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
   if (!global.quiet && report.evaluated) std::cout << eval::formatMetricsTable(report);
 }
 
+/// The log's span: its earliest to latest stamp over the streams the estimators read.
+double logDuration(const io::TraverseLog& log) {
+  double t0 = std::numeric_limits<double>::infinity(), t1 = -t0;
+  const io::Stream* accel = log.accel ? &*log.accel : nullptr;
+  const io::Stream* sun = log.sun ? &*log.sun : nullptr;
+  for (const io::Stream* s : {&log.gyro, &log.joints, accel, sun}) {
+    if (!s || s->t.size() == 0) continue;
+    t0 = std::min(t0, s->t[0]);
+    t1 = std::max(t1, s->t[s->t.size() - 1]);
+  }
+  return t1 >= t0 ? t1 - t0 : 0.0;
+}
+
+eval::RunSummary runSummary(const io::TraverseLog& log, const pipeline::Estimates& e) {
+  eval::RunSummary r;
+  r.duration_s = logDuration(log);
+  const est::Trajectory& best = e.smoothed ? e.smoothed->trajectory : e.ekf.trajectory;
+  for (size_t i = 1; i < best.nodes.size(); ++i)
+    r.estimated_path_length_m += (best.nodes[i].p_site - best.nodes[i - 1].p_site).norm();
+  r.segments = static_cast<int>(e.segmentation.segments.size());
+  r.rest_windows = static_cast<int>(e.segmentation.rests.size());
+  if (e.smoothed) {
+    for (const auto& g : e.smoothed->segments)
+      r.smoother_fallbacks += g.status == smoother::SegmentStatus::kFallbackEkf;
+  }
+  const est::EkfStats& s = e.ekf.stats;
+  r.slip_updates_gated_pct =
+      s.slip_updates > 0 ? 100.0 * static_cast<double>(s.slip_rejected) / s.slip_updates : 0.0;
+  return r;
+}
+
 }  // namespace
+
+int runLogs(PipelineOptions options, const GlobalOptions& global, bool smooth) {
+  if (options.log_dirs.size() == 1 && !options.batch) {
+    options.log_dir = options.log_dirs.front();
+    runPipeline(options, global, smooth);
+    return 0;
+  }
+  return runBatch(options.log_dirs, options, BatchOptions{options.jobs, options.force}, global,
+                  smooth);
+}
 
 pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& global,
                                 bool smooth) {
@@ -205,7 +261,8 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     trajectories.push_back(e.smoothed->trajectory);
   }
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
-  evaluateAgainstLogTruth(log, e.segmentation, trajectories, diagnostics, o, global);
+  evaluateAgainstLogTruth(log, e.segmentation, trajectories, diagnostics, runSummary(log, e), o,
+                          global);
   for (const std::string& w : e.ekf.warnings) std::cerr << "warning: " << w << "\n";
   if (!global.quiet) {
     const est::EkfStats& s = e.ekf.stats;

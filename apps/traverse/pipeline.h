@@ -15,6 +15,10 @@ namespace traverse::app {
 
 struct PipelineOptions {
   std::string log_dir, out_dir;
+  std::vector<std::string> log_dirs;  ///< what the command line named (batch.h when several)
+  int jobs = 0;                       ///< logs run in parallel (0: all cores)
+  bool force = false;                 ///< rerun logs whose outputs are up to date
+  bool batch = false;                 ///< OUTDIR/<log name>/ even for one log
   bool skip_bad_rows = false;
   std::string calibration;  ///< rover.yaml overlay (traverse calibrate), empty: none
   std::vector<double> initial_position{0.0, 0.0, 0.0};
@@ -35,6 +39,9 @@ struct PipelineOptions {
 };
 
 void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);
+/// Runs `options` on the log directories named: one log into OUTDIR itself, several (or
+/// --batch) into OUTDIR/<name>/ with summary.csv (batch.h). Returns the exit status.
+int runLogs(PipelineOptions options, const GlobalOptions& global, bool smooth);
 void addSmootherOptions(CLI::App& cmd, PipelineOptions& options);
 pipeline::PipelineConfig pipelineConfig(const PipelineOptions& options);
 /// Reads the log, estimates, writes OUTDIR; returns what it estimated.

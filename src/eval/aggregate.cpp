@@ -6,7 +6,9 @@
 #include <numeric>
 
 #include "eval/table.h"
-#include "traverse/eval/json.h"
+#include "traverse/io/atomic_file.h"
+
+#include <nlohmann/json.hpp>
 
 namespace traverse::eval {
 
@@ -73,30 +75,28 @@ AccuracyReport aggregate(std::string scenario, const std::vector<MetricsReport>&
 }
 
 std::string formatAccuracyJson(const AccuracyReport& report) {
-  JsonWriter json;
-  json.beginObject();
-  json.key("scenario").string(report.scenario);
-  json.key("runs").integer(report.runs);
-  json.key("estimators").beginObject();
+  using Json = nlohmann::ordered_json;
+  auto number = [](double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); };
+  Json j = Json::object();
+  j["scenario"] = report.scenario;
+  j["runs"] = report.runs;
+  Json estimators = Json::object();
   for (const EstimatorStatistics& e : report.estimators) {
-    json.key(e.estimator).beginObject();
+    Json m = Json::object();
     for (const auto& [key, s] : e.metrics) {
-      json.key(key).beginObject(/*compact=*/true);
-      json.key("mean").number(s.mean);
-      json.key("std").number(s.stddev);
-      json.key("median").number(s.median);
-      json.key("max").number(s.max);
-      json.endObject();
+      m[key] = {{"mean", number(s.mean)},
+                {"std", number(s.stddev)},
+                {"median", number(s.median)},
+                {"max", number(s.max)}};
     }
-    json.endObject();
+    estimators[e.estimator] = std::move(m);
   }
-  json.endObject();
-  json.endObject();
-  return json.text();
+  j["estimators"] = std::move(estimators);
+  return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 void writeAccuracyJson(const std::filesystem::path& file, const AccuracyReport& report) {
-  writeTextAtomically(file, formatAccuracyJson(report));
+  io::writeFileAtomically(file, formatAccuracyJson(report));
 }
 
 std::string formatAccuracyTable(const AccuracyReport& report) {

@@ -104,6 +104,16 @@ struct EstimatorMetrics {
 };
 
 /// The content of metrics.json.
+/// What a run of the estimators did, whether or not the log has truth (metrics.json "run").
+struct RunSummary {
+  double duration_s = 0.0;               ///< the log's span (its earliest to latest stamp)
+  double estimated_path_length_m = 0.0;  ///< along the best estimate (smoother, else EKF)
+  int segments = 0;                      ///< stop-to-stop legs
+  int rest_windows = 0;
+  int smoother_fallbacks = 0;           ///< segments that kept the EKF's states
+  double slip_updates_gated_pct = 0.0;  ///< of the EKF's slip updates, % gated out
+};
+
 struct MetricsReport {
   std::string log;             ///< the log directory's name
   double path_length_m = 0.0;  ///< truth path length over the span of all trajectories
@@ -111,19 +121,25 @@ struct MetricsReport {
   /// What the stream diagnostics found in the log (io/diagnostics.h), when they ran.
   std::optional<io::Diagnostics> diagnostics = std::nullopt;
   bool evaluated = true;  ///< false: the log has no truth (no path length, no estimators)
+  std::optional<RunSummary> run = std::nullopt;  ///< set by the pipeline (not by `evaluate`)
 };
 
 /// Evaluates every trajectory (in the given order) against one truth.
 MetricsReport evaluateAll(std::string log_name, const std::vector<est::Trajectory>& trajectories,
                           const TruthTrajectory& truth, const EvaluateOptions& options = {});
 
-/// {"log": …, "path_length_m": …, "estimators": {"dr": {…}, …}, "diagnostics": {…}}
+/// {"log": …, "run": {…}, "path_length_m": …, "estimators": {"dr": {…}, …}, "diagnostics": {…}}
 /// (outputs.md), newline-ended; without truth only "log" and "diagnostics". The diagnostics
 /// block: "counts" (every kind), "by_file" (file → kind → count), "findings" (one compact
 /// object each: file, kind, t, duration_s, column and value when set, message).
 std::string formatMetricsJson(const MetricsReport& report);
 /// Writes formatMetricsJson atomically (tmp file + rename).
 void writeMetricsJson(const std::filesystem::path& file, const MetricsReport& report);
+
+/// Reads metrics.json back (as `traverse summarize` does). Null numbers read as NaN. Throws
+/// InputError naming the file when it is not such a document.
+MetricsReport parseMetricsJson(const std::string& text, const std::string& file);
+MetricsReport readMetricsJson(const std::filesystem::path& file);
 
 /// A plain-text table: one row per metric key, one column per estimator ("-" when omitted).
 std::string formatMetricsTable(const MetricsReport& report);
