@@ -144,6 +144,7 @@ std::vector<std::string> pipelineArguments(const PipelineOptions& o, bool smooth
                      std::to_string(o.max_iterations)});
   if (o.no_covariance) a.push_back("--no-covariance");
   if (o.solver_report) a.push_back("--solver-report");
+  if (o.no_report) a.push_back("--no-report");
   return a;  // --threads is left out: it changes the time a run takes, not its results
 }
 

@@ -6,11 +6,13 @@
 #include <cstdio>
 #include <iostream>
 #include <limits>
+#include <sstream>
 
 #include "traverse/eval/metrics.h"
 #include "traverse/eval/position_truth.h"
 #include "traverse/io/diagnostics.h"
 #include "traverse/io/log_reader.h"
+#include "traverse/report/report.h"
 
 namespace traverse::app {
 
@@ -88,6 +90,7 @@ void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd.add_flag("--solver-report", o.solver_report, "Print Ceres' report for every segment");
+  cmd.add_flag("--no-report", o.no_report, "Do not write report.html");
   cmd.add_flag("--no-covariance", o.no_covariance,
                "Skip the smoother's marginal covariances (σ columns then come from the EKF)");
 }
@@ -146,10 +149,11 @@ namespace {
 
 /// metrics.json (and the table) when the log has truth: truth.csv, else the position-only
 /// gps.csv (docs/evaluation.md). Nothing without either.
-void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation& seg,
-                             const std::vector<est::Trajectory>& trajectories,
-                             const io::Diagnostics& diagnostics, const eval::RunSummary& run,
-                             const PipelineOptions& o, const GlobalOptions& global) {
+eval::MetricsReport evaluateAgainstLogTruth(const io::TraverseLog& log,
+                                            const est::Segmentation& seg,
+                                            const std::vector<est::Trajectory>& trajectories,
+                                            const io::Diagnostics& diagnostics,
+                                            const eval::RunSummary& run, const PipelineOptions& o) {
   const auto dir_name = std::filesystem::absolute(o.log_dir).lexically_normal().filename().string();
   const std::string name = dir_name.empty() ? o.log_dir : dir_name;
   eval::MetricsReport report;
@@ -167,7 +171,7 @@ void evaluateAgainstLogTruth(const io::TraverseLog& log, const est::Segmentation
   report.diagnostics = diagnostics;
   report.run = run;
   eval::writeMetricsJson(std::filesystem::path(o.out_dir) / "metrics.json", report);
-  if (!global.quiet && report.evaluated) std::cout << eval::formatMetricsTable(report);
+  return report;
 }
 
 /// The log's span: its earliest to latest stamp over the streams the estimators read.
@@ -247,10 +251,14 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     }
   }
   for (const std::string& line : diagnostics.warningLines()) std::cerr << line << "\n";
+  std::vector<std::string> said;  // what the run says besides the diagnostics (report.html too)
   for (const est::RefusedRest& r : e.segmentation.refused_rests) {
-    std::cerr << "warning: " << o.log_dir << ": apparent rest " << r.t_start << " .. " << r.t_end
-              << " s is not at rest (chi2 of gyro slope and wheel travel " << r.chi2 << " > "
-              << r.threshold << ", " << r.dof << " dof): treated as motion\n";
+    std::ostringstream w;
+    w << "warning: " << o.log_dir << ": apparent rest " << r.t_start << " .. " << r.t_end
+      << " s is not at rest (chi2 of gyro slope and wheel travel " << r.chi2 << " > " << r.threshold
+      << ", " << r.dof << " dof): treated as motion";
+    std::cerr << w.str() << "\n";
+    said.push_back(w.str());
   }
   std::filesystem::create_directories(o.out_dir);
   est::writeTrajectory(o.out_dir, e.dr);
@@ -261,54 +269,75 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     trajectories.push_back(e.smoothed->trajectory);
   }
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
-  evaluateAgainstLogTruth(log, e.segmentation, trajectories, diagnostics, runSummary(log, e), o,
-                          global);
-  for (const std::string& w : e.ekf.warnings) std::cerr << "warning: " << w << "\n";
-  if (!global.quiet) {
-    const est::EkfStats& s = e.ekf.stats;
-    std::cout << "segments: " << e.segmentation.segments.size() << " ("
-              << e.segmentation.rests.size() << " rest windows)\n"
-              << "ekf: " << e.ekf.trajectory.nodes.size() << " nodes; updates: slip "
-              << s.slip_updates << " (" << s.slip_rejected << " gated out"
-              << (s.slip_not_used > 0
-                      ? ", " + std::to_string(s.slip_not_used) + " not used: wheel outages"
-                      : std::string())
-              << "), sun " << s.sun_updates << " (" << s.sun_rejected
-              << " gated out), zero-velocity " << s.zero_velocity_updates << ", zero-rate "
-              << s.zero_rate_updates << ", bias " << s.bias_updates << ", gravity "
-              << s.gravity_updates << ", gyro " << s.gyro_updates
-              << (s.common_slip_jumps > 0
-                      ? "; common slip jumps " + std::to_string(s.common_slip_jumps)
-                      : std::string())
-              << "\n";
-    if (e.smoothed) {
-      int converged = 0, fallback = 0;
-      double solve = 0, cov = 0;
-      size_t nodes = 0;
-      for (const auto& g : e.smoothed->segments) {
-        converged += g.status == smoother::SegmentStatus::kConverged,
-            fallback += g.status == smoother::SegmentStatus::kFallbackEkf;
-        solve += g.solve_seconds, cov += g.covariance_seconds, nodes += g.num_nodes;
-      }
-      std::cout << "smoother: " << e.smoothed->segments.size() << " segments (" << converged
-                << " converged, " << fallback << " fell back to the EKF), " << nodes
-                << " nodes; solve " << solve << " s, covariance " << cov << " s (CPU, summed)\n";
-      for (const auto& g : e.smoothed->segments) {
-        if (g.status == smoother::SegmentStatus::kFallbackEkf)
-          std::cout << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
-                    << " s) kept the EKF's states: " << g.message << "\n";
-        // A segment spanning a gap is marked: there its states rest on the process model alone.
-        for (const io::Finding& f : diagnostics.findings) {
-          if (f.kind == "gap" && f.t >= g.t_start && f.t < g.t_end &&
-              (f.file == "gyro.csv" || f.file == "joints.csv" || f.file == "accel.csv"))
-            std::cout << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
-                      << " s) spans a " << f.file << " " << f.message
-                      << " (its states there rest on the process model)\n";
-        }
+  const eval::MetricsReport metrics = evaluateAgainstLogTruth(log, e.segmentation, trajectories,
+                                                              diagnostics, runSummary(log, e), o);
+  if (!global.quiet && metrics.evaluated) std::cout << eval::formatMetricsTable(metrics);
+  for (const std::string& w : e.ekf.warnings) {
+    std::cerr << "warning: " << w << "\n";
+    said.push_back("warning: " + w);
+  }
+  std::ostringstream out;
+  const est::EkfStats& s = e.ekf.stats;
+  out << "segments: " << e.segmentation.segments.size() << " (" << e.segmentation.rests.size()
+      << " rest windows)\n"
+      << "ekf: " << e.ekf.trajectory.nodes.size() << " nodes; updates: slip " << s.slip_updates
+      << " (" << s.slip_rejected << " gated out"
+      << (s.slip_not_used > 0 ? ", " + std::to_string(s.slip_not_used) + " not used: wheel outages"
+                              : std::string())
+      << "), sun " << s.sun_updates << " (" << s.sun_rejected << " gated out), zero-velocity "
+      << s.zero_velocity_updates << ", zero-rate " << s.zero_rate_updates << ", bias "
+      << s.bias_updates << ", gravity " << s.gravity_updates << ", gyro " << s.gyro_updates
+      << (s.common_slip_jumps > 0 ? "; common slip jumps " + std::to_string(s.common_slip_jumps)
+                                  : std::string())
+      << "\n";
+  if (e.smoothed) {
+    int converged = 0, fallback = 0;
+    double solve = 0, cov = 0;
+    size_t nodes = 0;
+    for (const auto& g : e.smoothed->segments) {
+      converged += g.status == smoother::SegmentStatus::kConverged,
+          fallback += g.status == smoother::SegmentStatus::kFallbackEkf;
+      solve += g.solve_seconds, cov += g.covariance_seconds, nodes += g.num_nodes;
+    }
+    out << "smoother: " << e.smoothed->segments.size() << " segments (" << converged
+        << " converged, " << fallback << " fell back to the EKF), " << nodes << " nodes; solve "
+        << solve << " s, covariance " << cov << " s (CPU, summed)\n";
+    for (const auto& g : e.smoothed->segments) {
+      if (g.status == smoother::SegmentStatus::kFallbackEkf)
+        out << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
+            << " s) kept the EKF's states: " << g.message << "\n";
+      // A segment spanning a gap is marked: there its states rest on the process model alone.
+      for (const io::Finding& f : diagnostics.findings) {
+        if (f.kind == "gap" && f.t >= g.t_start && f.t < g.t_end &&
+            (f.file == "gyro.csv" || f.file == "joints.csv" || f.file == "accel.csv"))
+          out << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
+              << " s) spans a " << f.file << " " << f.message
+              << " (its states there rest on the process model)\n";
       }
     }
-    std::cout << "wrote " << o.out_dir << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
-              << ".{csv,tum}, segments.csv, metrics.json\n";
+  }
+  std::istringstream lines(out.str());
+  for (std::string line; std::getline(lines, line);) said.push_back(line);
+  const bool write_report = smooth && !o.no_report;
+  if (write_report) {
+    report::ReportInput in;
+    in.log_name = metrics.log;
+    std::string command = std::string("traverse run ") + o.log_dir + " -o " + o.out_dir;
+    for (const std::string& a : pipelineArguments(o, smooth)) command += " " + a;
+    in.command = command;
+    in.log = &log;
+    in.segmentation = &e.segmentation;
+    for (const est::Trajectory& tr : trajectories) in.trajectories.push_back(&tr);
+    in.segments = e.segments;
+    in.metrics = &metrics;
+    in.run_lines = said;
+    report::writeReport(std::filesystem::path(o.out_dir) / "report.html", in);
+  }
+  if (!global.quiet) {
+    std::cout << out.str() << "wrote " << o.out_dir
+              << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
+              << ".{csv,tum}, segments.csv, metrics.json" << (write_report ? ", report.html" : "")
+              << "\n";
   }
   return e;
 }

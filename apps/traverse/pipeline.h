@@ -36,6 +36,7 @@ struct PipelineOptions {
   int max_iterations = 50;
   int threads = 0;
   bool no_covariance = false, solver_report = false;
+  bool no_report = false;  ///< smooth, run: no report.html
 };
 
 void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);
