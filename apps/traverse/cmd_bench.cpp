@@ -34,6 +34,7 @@ eval::MetricsReport oneRun(const sim::Scenario& sc, const std::filesystem::path&
   const sim::Simulation s = sim::simulate(sc, rover_dir, seed);
   const pipeline::Estimates e = pipeline::estimate(s.log, config);
   std::vector<est::Trajectory> trajectories{e.dr, e.ekf.trajectory};
+  if (e.ekf.rts) trajectories.push_back(*e.ekf.rts);
   if (e.smoothed) trajectories.push_back(e.smoothed->trajectory);
   const eval::TruthTrajectory truth(*s.log.truth);
   eval::MetricsReport report =

@@ -1,5 +1,5 @@
 // `traverse evaluate OUTDIR --truth LOGDIR`: metrics of whatever trajectories OUTDIR holds
-// (dr.csv, ekf.csv, smoothed.csv) against LOGDIR/truth.csv, or, without it, against the
+// (dr.csv, ekf.csv, rts.csv, smoothed.csv) against LOGDIR/truth.csv, or, without it, against the
 // position-only LOGDIR/gps.csv (lever arm from LOGDIR/rover.yaml); writes OUTDIR/metrics.json
 // (with the log's diagnostics when LOGDIR is a whole log).
 #include <iostream>
@@ -19,10 +19,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// The trajectories present in `dir`, in the order dr, ekf, smoothed.
+/// The trajectories present in `dir`, in the order dr, ekf, rts, smoothed.
 std::vector<est::Trajectory> readTrajectories(const fs::path& dir) {
   std::vector<est::Trajectory> out;
-  for (const char* name : {"dr", "ekf", "smoothed"}) {
+  for (const char* name : {"dr", "ekf", "rts", "smoothed"}) {
     const fs::path file = dir / (std::string(name) + ".csv");
     if (!fs::exists(file)) continue;
     try {
@@ -50,7 +50,7 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
   auto opt = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
       "evaluate", "Compare the trajectories in OUTDIR with a log's truth; write metrics.json");
-  cmd->add_option("OUTDIR", opt->out_dir, "Output directory holding dr.csv, ekf.csv, smoothed.csv")
+  cmd->add_option("OUTDIR", opt->out_dir, "Output directory holding dr.csv, ekf.csv, rts.csv, smoothed.csv")
       ->required();
   cmd->add_option("--truth", opt->log_dir, "Log directory holding truth.csv or gps.csv")
       ->required();
@@ -67,7 +67,7 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
     const std::vector<est::Trajectory> trajectories = readTrajectories(out_dir);
     if (trajectories.empty()) {
       throw InputError(opt->out_dir, 0,
-                       "no trajectory to evaluate (dr.csv, ekf.csv, smoothed.csv)");
+                       "no trajectory to evaluate (dr.csv, ekf.csv, rts.csv, smoothed.csv)");
     }
     eval::MetricsReport report;
     if (pose_truth) {

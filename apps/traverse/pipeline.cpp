@@ -53,6 +53,8 @@ void addPipelineOptions(CLI::App& cmd, PipelineOptions& o) {
                "Accept every sun and slip innovation (no chi-square gate)");
   cmd.add_flag("--pitch-projection", o.pitch_projection,
                "Dead reckoning: project wheel speed by the pitch");
+  cmd.add_flag("--no-rts", o.no_rts,
+               "Skip the Rauch-Tung-Striebel smoother over the EKF's states (rts.csv)");
   cmd.add_flag("--no-clock-align", o.no_clock_align,
                "Keep joints.csv's stamps as logged (no clock offset estimated against the gyro "
                "and accelerometer)");
@@ -108,6 +110,7 @@ pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   c.ekf.use_sun = !o.no_sun;
   c.ekf.use_slip = !o.no_slip;
   c.ekf.gating = !o.no_gating;
+  c.ekf.rts = !o.no_rts;
   c.dead_reckoning.pitch_projection = o.pitch_projection;
   c.align_joints_clock = !o.no_clock_align;
   c.joints_clock_offset_s = o.joints_clock_offset_s;
@@ -264,6 +267,10 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   est::writeTrajectory(o.out_dir, e.dr);
   est::writeTrajectory(o.out_dir, e.ekf.trajectory);
   std::vector<est::Trajectory> trajectories{e.dr, e.ekf.trajectory};
+  if (e.ekf.rts) {
+    est::writeTrajectory(o.out_dir, *e.ekf.rts);
+    trajectories.push_back(*e.ekf.rts);
+  }
   if (e.smoothed) {
     est::writeTrajectory(o.out_dir, e.smoothed->trajectory);
     trajectories.push_back(e.smoothed->trajectory);
@@ -316,6 +323,10 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
       }
     }
   }
+  out << "time: dead reckoning " << e.seconds.dr << " s, ekf " << e.seconds.ekf << " s"
+      << (e.ekf.rts ? ", rts " + std::to_string(e.seconds.rts) + " s" : std::string())
+      << (e.smoothed ? ", smoother " + std::to_string(e.seconds.smoother) + " s" : std::string())
+      << " (wall)\n";
   std::istringstream lines(out.str());
   for (std::string line; std::getline(lines, line);) said.push_back(line);
   const bool write_report = smooth && !o.no_report;
@@ -334,8 +345,10 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     report::writeReport(std::filesystem::path(o.out_dir) / "report.html", in);
   }
   if (!global.quiet) {
-    std::cout << out.str() << "wrote " << o.out_dir
-              << (e.smoothed ? "/{dr,ekf,smoothed}" : "/{dr,ekf}")
+    std::string names = "dr,ekf";
+    if (e.ekf.rts) names += ",rts";
+    if (e.smoothed) names += ",smoothed";
+    std::cout << out.str() << "wrote " << o.out_dir << "/{" << names << "}"
               << ".{csv,tum}, segments.csv, metrics.json" << (write_report ? ", report.html" : "")
               << "\n";
   }

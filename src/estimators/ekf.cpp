@@ -1,6 +1,8 @@
 #include "traverse/estimators/ekf.h"
+#include "traverse/estimators/rts.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -233,6 +235,16 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
     qc[kc_ + 1] = -2.0 * d.a_c * sn.common_lateral_mps * sn.common_lateral_mps;
   }
 
+  if (recording_) {
+    if (updating_) {  // the updates since the last propagation made a posterior
+      chain_.points.push_back({state(), P_, {}, {}, {}});
+      phi_acc_ = Eigen::MatrixXd::Identity(n_, n_);
+      updating_ = false;
+    }
+    const Eigen::MatrixXd Fdt = lin.F * dt;
+    const Eigen::MatrixXd phi = Eigen::MatrixXd::Identity(n_, n_) + Fdt + 0.5 * Fdt * Fdt;
+    phi_acc_ = phi * phi_acc_;
+  }
   detail::propagateCovarianceInPlace(lin.F, dt, &P_);
   P_.diagonal() += qc * dt;  // white process noise over dt (first order)
   P_ = 0.5 * (P_ + P_.transpose());
@@ -392,6 +404,7 @@ bool Ekf::update(const Eigen::Matrix<double, M, 1>& r, const EkfRows<M>& H,
   const Eigen::Matrix<double, M, M> S_inv = S.inverse();
   if (gate > 0 && r.dot(S_inv * r) > gate) return false;
   const EkfCols<M> K = PHt * S_inv;
+  if (recording_ && !updating_) closeTransition();
   detail::josephUpdate<M>(&P_, K, PHt, S);
   absorb(K * r);
   return true;
@@ -603,23 +616,64 @@ void Ekf::updateGravity(const sensors::RollPitchMeasurement& m) {
 }
 
 TrajectoryNode Ekf::node(double t, const EkfInputs& in) const {
+  return nodeOf(state(), P_, t, in);
+}
+
+TrajectoryNode Ekf::nodeOf(const EkfState& s, const EkfMatrix& P, double t,
+                           const EkfInputs& in) const {
   const bool accel_driven =
       options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
   TrajectoryNode n;
   n.t = t;
-  n.p_site = x_;
-  n.q_site_body = q_;
-  n.v_body = accel_driven ? v_p_ : velocity<double>(v_p_, in);
-  n.w_body = omega<double>(w_p_, b_, in);
-  n.xi = xi_;
-  n.bias = b_;
-  n.bias_sigma = P_.block<3, 3>(I::kBias, I::kBias).diagonal().cwiseSqrt();
-  n.common_slip = c_;
-  n.covariance.topLeftCorner<3, 3>() = P_.block<3, 3>(I::kPos, I::kPos);
-  n.covariance.bottomRightCorner<3, 3>() = P_.block<3, 3>(I::kTheta, I::kTheta);
-  n.covariance.topRightCorner<3, 3>() = P_.block<3, 3>(I::kPos, I::kTheta);
-  n.covariance.bottomLeftCorner<3, 3>() = P_.block<3, 3>(I::kTheta, I::kPos);
+  n.p_site = s.p_site;
+  n.q_site_body = s.q_site_body;
+  n.v_body = accel_driven ? s.v_p : velocity<double>(s.v_p, in);
+  n.w_body = omega<double>(s.w_p, s.bias, in);
+  n.xi = s.xi;
+  n.bias = s.bias;
+  n.bias_sigma = P.block<3, 3>(I::kBias, I::kBias).diagonal().cwiseSqrt();
+  n.common_slip = s.common_slip;
+  n.covariance.topLeftCorner<3, 3>() = P.block<3, 3>(I::kPos, I::kPos);
+  n.covariance.bottomRightCorner<3, 3>() = P.block<3, 3>(I::kTheta, I::kTheta);
+  n.covariance.topRightCorner<3, 3>() = P.block<3, 3>(I::kPos, I::kTheta);
+  n.covariance.bottomLeftCorner<3, 3>() = P.block<3, 3>(I::kTheta, I::kPos);
   return n;
+}
+
+void Ekf::startRecording() {
+  recording_ = true;
+  updating_ = false;
+  chain_ = RtsChain{};
+  chain_.points.push_back({state(), P_, {}, {}, {}});
+  phi_acc_ = Eigen::MatrixXd::Identity(n_, n_);
+}
+
+void Ekf::closeTransition() {
+  RtsPoint& last = chain_.points.back();
+  last.phi = phi_acc_;
+  last.prior = state();
+  last.P_prior = P_;
+  updating_ = true;
+}
+
+void Ekf::recordNode(double t, const EkfInputs& in) {
+  if (!recording_) return;
+  // A node with no update since the last propagation (no slip rows in a joints gap): its prior
+  // is its posterior, a point of the chain all the same.
+  if (!updating_) closeTransition();
+  chain_.node_points.push_back(chain_.points.size());  // the point its posterior will be
+  chain_.node_t.push_back(t);
+  chain_.node_inputs.push_back(in);
+}
+
+RtsChain Ekf::finishRecording() {
+  if (recording_) {
+    if (!updating_ && (phi_acc_ - Eigen::MatrixXd::Identity(n_, n_)).cwiseAbs().maxCoeff() > 0)
+      closeTransition();
+    if (updating_) chain_.points.push_back({state(), P_, {}, {}, {}});
+    recording_ = updating_ = false;
+  }
+  return std::move(chain_);
 }
 
 namespace {
@@ -849,6 +903,7 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
   result.trajectory.has_covariance = true;
   result.trajectory.nodes.reserve(joints.size());
   const bool k12 = options.attitude == EkfOptions::AttitudeModel::kGyroMeasurement;
+  if (options.rts) ekf.startRecording();
   for (;;) {
     while (log.sun && is < log.sun->size() && log.sun->values(is, 2) < 0.5)
       ++is;  // valid = 0: ignored
@@ -885,10 +940,17 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
         ++gravity_next;
       }
       result.trajectory.nodes.push_back(ekf.node(t, in));
+      ekf.recordNode(t, in);
       ++ij;
     }
   }
   result.stats = ekf.stats();
+  if (options.rts) {
+    const auto t0 = std::chrono::steady_clock::now();
+    result.rts = rtsSmooth(ekf, ekf.finishRecording());
+    result.rts_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
   return result;
 }
 

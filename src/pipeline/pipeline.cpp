@@ -1,5 +1,7 @@
 #include "traverse/pipeline/pipeline.h"
 
+#include <chrono>
+
 #include <algorithm>
 #include <set>
 
@@ -132,8 +134,17 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
   const io::TraverseLog& log = screened;
   e.segmentation = est::segment(log, config.segmentation);
   e.init = est::initialState(log, e.segmentation, config.init);
+  using Clock = std::chrono::steady_clock;
+  auto seconds = [](Clock::time_point a) {
+    return std::chrono::duration<double>(Clock::now() - a).count();
+  };
+  auto t0 = Clock::now();
   e.dr = est::deadReckoning(log, e.segmentation, e.init, config.dead_reckoning);
+  e.seconds.dr = seconds(t0);
+  t0 = Clock::now();
   e.ekf = est::runEkf(log, e.segmentation, e.init, config.ekf);
+  e.seconds.rts = e.ekf.rts_seconds;
+  e.seconds.ekf = seconds(t0) - e.seconds.rts;
   e.segments = segmentRows(e.segmentation, e.ekf.trajectory);
   if (config.smooth) {
     smoother::SmootherOptions so = config.smoother;
@@ -142,7 +153,9 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
     if (so.velocity == smoother::SmootherOptions::VelocityModel::kAuto &&
         e.ekf.velocity == est::EkfOptions::VelocityModel::kPerturbation)
       so.velocity = smoother::SmootherOptions::VelocityModel::kPerturbation;
+    t0 = Clock::now();
     e.smoothed = smoother::smooth(log, e.segmentation, e.ekf.trajectory, so);
+    e.seconds.smoother = seconds(t0);
     e.segments = smoother::smootherSegmentRows(e.segments, *e.smoothed);
   }
   return e;

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -80,6 +81,9 @@ struct EkfOptions {
   double initial_rate_sigma_rad_s = 0.01;
   double initial_contact_sigma_rad = 0.1;
   double initial_position_sigma_m = 1e-4;
+  /// Also run the Rauch–Tung–Striebel smoother over the filter's stored states (rts.h):
+  /// EkfResult::rts, the trajectory "rts".
+  bool rts = false;
 };
 
 /// Counts of each update, and of the innovations the χ² gate rejected.
@@ -118,6 +122,27 @@ struct EkfState {
   rover::WheelVectord xi;             ///< contact angles ξ1..ξN
   Vec3d bias = Vec3d::Zero();         ///< gyro bias b
   Vec2d common_slip = Vec2d::Zero();  ///< c (body x, y; zero without the state)
+};
+
+/// What a Rauch–Tung–Striebel pass over the filter needs (rts.h), recorded while it runs: the
+/// chain of posteriors (the state after each batch of updates) and, between consecutive ones, the
+/// transition the propagations made — Φ composed over every step since the posterior, and the
+/// prior they gave (state and covariance just before the next batch of updates). Matrices are
+/// numStates() square.
+struct RtsPoint {
+  EkfState posterior;
+  Eigen::MatrixXd P_post;
+  Eigen::MatrixXd phi;  ///< to the next point (empty at the last)
+  EkfState prior;       ///< the next point's prior
+  Eigen::MatrixXd P_prior;
+};
+
+struct RtsChain {
+  std::vector<RtsPoint> points;
+  /// Per trajectory node: its point, time and inputs (the node's derived ω and v need them).
+  std::vector<size_t> node_points;
+  std::vector<double> node_t;
+  std::vector<EkfInputs> node_inputs;
 };
 
 class Ekf {
@@ -165,6 +190,16 @@ class Ekf {
   void absorb(const EkfVector& dx);
 
   TrajectoryNode node(double t, const EkfInputs& in) const;
+  /// The node of a given state and covariance (what node() does for the filter's own).
+  TrajectoryNode nodeOf(const EkfState& state, const EkfMatrix& P, double t,
+                        const EkfInputs& in) const;
+
+  /// Starts recording the chain an RTS pass needs (RtsChain), from the current state.
+  void startRecording();
+  /// Marks the current state as the node at t (inputs `in`): it becomes a point of the chain.
+  void recordNode(double t, const EkfInputs& in);
+  /// Ends the recording (the last propagations become a final point) and hands the chain over.
+  RtsChain finishRecording();
   const EkfStats& stats() const { return stats_; }
   const EkfMatrix& covariance() const { return P_; }
   /// Replaces the covariance (tests; P must be symmetric positive semi-definite).
@@ -228,6 +263,12 @@ class Ekf {
   int nw_, nc_, kc_, n_;  ///< wheels, common slip states (0, 2), their offset, error-state size
   EkfMatrix P_;
   EkfStats stats_;
+  // RTS recording (startRecording): Φ since the latest posterior, whether updates followed it.
+  bool recording_ = false, updating_ = false;
+  Eigen::MatrixXd phi_acc_;
+  RtsChain chain_;
+  /// Before the first update of a batch: the transition into it is complete.
+  void closeTransition();
 };
 
 struct EkfResult {
@@ -237,6 +278,9 @@ struct EkfResult {
   /// What the run should tell its user (one line each, without "warning: "): most updates of
   /// a kind gated out, the velocity model given up.
   std::vector<std::string> warnings;
+  /// The Rauch–Tung–Striebel smoother over this run's stored states (EkfOptions::rts; rts.h).
+  std::optional<Trajectory> rts;
+  double rts_seconds = 0.0;  ///< wall time of the backward pass
 };
 
 /// Above this fraction of slip (or sun) updates rejected by the χ² gate the model, not the

@@ -48,6 +48,13 @@ struct PipelineConfig {
   smoother::SmootherOptions smoother;
 };
 
+/// Wall time of each estimator in one run (s): dead reckoning, the EKF (every run of it, the
+/// accelerometer-driven one given up included; its recording for RTS too), the RTS backward pass,
+/// the batch smoother (solve and covariance, all segments).
+struct EstimatorSeconds {
+  double dr = 0.0, ekf = 0.0, rts = 0.0, smoother = 0.0;
+};
+
 struct Estimates {
   Segmentation segmentation;
   InitialState init;
@@ -60,6 +67,7 @@ struct Estimates {
   /// its stamps (−offset; 0 when none was).
   ClockOffset joints_clock;
   double joints_shift_s = 0.0;
+  EstimatorSeconds seconds;
 };
 
 /// The log without its spikes (step 0 of estimate): every gyro.csv and accel.csv sample and
