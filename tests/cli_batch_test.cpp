@@ -167,5 +167,23 @@ TEST_F(CliBatch, TwoLogsOfOneNameAreRefusedBeforeAnythingRuns) {
   EXPECT_FALSE(fs::exists(dir_ / "out"));
 }
 
+// `bench accuracy --out DIR`: a JSON per scenario and the Markdown tables, all four estimators.
+TEST_F(CliBatch, BenchAccuracyWritesJsonAndMarkdownPerScenario) {
+  const fs::path out = dir_ / "bench";
+  const Result r =
+      run("bench accuracy --scenario straight-1m --runs 2 --jobs 2 --out " + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "");  // no progress bar when stderr is not a terminal
+  const std::string json = slurp(out / "straight-1m.json");
+  EXPECT_THAT(json, HasSubstr("\"runs\": 2"));
+  const std::string md = slurp(out / "accuracy.md");
+  EXPECT_THAT(md, StartsWith("### straight-1m — 2 runs, median (mean ± std)\n\n"
+                             "| metric | dr | ekf | rts | smoother |\n|---|---|---|---|---|\n"));
+  EXPECT_THAT(md, HasSubstr("| final_position_error_m | "));
+  const Result bad = run("bench accuracy --runs 1 --json " + (dir_ / "x.json").string());
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_THAT(bad.err, HasSubstr("one scenario only"));
+}
+
 }  // namespace
 }  // namespace traverse

@@ -2,7 +2,9 @@
 // simulate, estimate, evaluate — then mean, std, median and max of every metric.
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <iostream>
 #include <memory>
 #include <mutex>
@@ -14,15 +16,16 @@
 #include "traverse/estimators/trajectory.h"
 #include "traverse/eval/aggregate.h"
 #include "traverse/eval/metrics.h"
+#include "traverse/io/atomic_file.h"
 #include "traverse/sim/simulator.h"
 
 namespace traverse::app {
 namespace {
 
 struct BenchOptions {
-  std::string scenario;
+  std::string scenario = "all";
   long runs = 20;
-  std::string json;
+  std::string json, out_dir, markdown;
   std::vector<std::string> overrides;
   int jobs = 0;
   bool no_smoother = false;
@@ -58,11 +61,18 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
   bench->require_subcommand(1);
   CLI::App* cmd = bench->add_subcommand(
       "accuracy", "Monte Carlo accuracy over seeds 1..N: simulate, estimate, evaluate");
-  cmd->add_option("--scenario", opt->scenario, "Scenario name or YAML file")->required();
+  cmd->add_option(
+         "--scenario", opt->scenario,
+         "Scenario name or YAML file; `all` (default): every scenario in datasets/scenarios")
+      ->capture_default_str();
   cmd->add_option("--runs", opt->runs, "Number of seeds (1..N)")
       ->capture_default_str()
       ->check(CLI::Range(1, 100000));
-  cmd->add_option("--json", opt->json, "Write the statistics as JSON (outputs.md)");
+  cmd->add_option("--json", opt->json,
+                  "Write the statistics as JSON (outputs.md); one scenario only");
+  cmd->add_option("--out", opt->out_dir,
+                  "Write DIR/<scenario>.json for every scenario and DIR/accuracy.md");
+  cmd->add_option("--markdown", opt->markdown, "Write the Markdown tables to FILE");
   cmd->add_option("--set", opt->overrides,
                   "Override a scenario key: dotted.key=value (repeatable)");
   cmd->add_option("-j,--jobs", opt->jobs, "Parallel runs (default: all cores)");
@@ -78,44 +88,77 @@ Command addBenchCommand(CLI::App& app, const GlobalOptions& global) {
   return [cmd, opt, &global]() {
     if (!*cmd) return -1;
     const std::filesystem::path data = datasetsDir();
-    const sim::Scenario sc = sim::loadScenario(opt->scenario, data, opt->overrides);
-    const std::filesystem::path rover_dir = sim::roverDirectory(sc, data);
+    std::vector<std::string> scenarios;
+    if (opt->scenario == "all") {
+      for (const auto& entry : std::filesystem::directory_iterator(data / "scenarios")) {
+        if (entry.path().extension() == ".yaml") scenarios.push_back(entry.path().stem().string());
+      }
+      std::sort(scenarios.begin(), scenarios.end());
+    } else {
+      scenarios.push_back(opt->scenario);
+    }
+    if (!opt->json.empty() && scenarios.size() > 1)
+      throw InputError("--json", 0, "one scenario only; use --out DIR for several");
     pipeline::PipelineConfig config = pipelineConfig(opt->pipeline);
     config.smooth = !opt->no_smoother;
     // Runs are parallel already: one thread per run's segments unless asked otherwise.
     if (opt->pipeline.threads == 0) config.smoother.threads = 1;
-    std::vector<eval::MetricsReport> reports(static_cast<size_t>(opt->runs));
-    std::atomic<long> next{0}, done{0};
-    std::mutex err_mutex;
-    std::exception_ptr error;
     const bool progress =
-        !global.quiet && isatty(STDERR_FILENO);  // a progress line on a terminal only
+        !global.quiet && isatty(STDERR_FILENO);  // a progress bar on a terminal only
     const int jobs = opt->jobs > 0
                          ? opt->jobs
                          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    std::vector<std::thread> pool;
-    for (int j = 0; j < jobs; ++j) {
-      pool.emplace_back([&] {
-        for (long k; (k = next++) < opt->runs;) {
-          try {
-            reports[static_cast<size_t>(k)] =
-                oneRun(sc, rover_dir, static_cast<uint64_t>(k + 1), config);
-          } catch (...) {
-            std::lock_guard<std::mutex> lock(err_mutex);
-            if (!error) error = std::current_exception();
+    std::string markdown;
+    for (size_t si = 0; si < scenarios.size(); ++si) {
+      const sim::Scenario sc = sim::loadScenario(scenarios[si], data, opt->overrides);
+      const std::filesystem::path rover_dir = sim::roverDirectory(sc, data);
+      std::vector<eval::MetricsReport> reports(static_cast<size_t>(opt->runs));
+      std::atomic<long> next{0}, done{0};
+      std::mutex err_mutex;
+      std::exception_ptr error;
+      const auto t0 = std::chrono::steady_clock::now();
+      auto bar = [&](long d) {
+        const int width = 20, filled = static_cast<int>(width * d / opt->runs);
+        const double s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::lock_guard<std::mutex> lock(err_mutex);
+        std::cerr << "\r\033[K[" << std::string(filled, '#') << std::string(width - filled, '.')
+                  << "] scenario " << si + 1 << "/" << scenarios.size() << " " << sc.name
+                  << ": run " << d << "/" << opt->runs << ", " << static_cast<int>(s) << " s"
+                  << std::flush;
+      };
+      if (progress) bar(0);
+      std::vector<std::thread> pool;
+      for (int j = 0; j < jobs; ++j) {
+        pool.emplace_back([&] {
+          for (long k; (k = next++) < opt->runs;) {
+            try {
+              reports[static_cast<size_t>(k)] =
+                  oneRun(sc, rover_dir, static_cast<uint64_t>(k + 1), config);
+            } catch (...) {
+              std::lock_guard<std::mutex> lock(err_mutex);
+              if (!error) error = std::current_exception();
+            }
+            const long d = ++done;
+            if (progress) bar(d);
           }
-          const long d = ++done;
-          if (!global.quiet)
-            std::cerr << "\r" << sc.name << ": run " << d << "/" << opt->runs << std::flush;
-        }
-      });
+        });
+      }
+      for (auto& t : pool) t.join();
+      if (progress) std::cerr << "\r\033[K";
+      if (error) std::rethrow_exception(error);
+      const eval::AccuracyReport report = eval::aggregate(sc.name, reports);
+      if (!opt->json.empty()) eval::writeAccuracyJson(opt->json, report);
+      if (!opt->out_dir.empty()) {
+        std::filesystem::create_directories(opt->out_dir);
+        eval::writeAccuracyJson(std::filesystem::path(opt->out_dir) / (sc.name + ".json"), report);
+      }
+      markdown += eval::formatAccuracyMarkdown(report);
+      if (!global.quiet) std::cout << eval::formatAccuracyTable(report) << std::flush;
     }
-    for (auto& t : pool) t.join();
-    if (progress) std::cerr << "\n";
-    if (error) std::rethrow_exception(error);
-    const eval::AccuracyReport report = eval::aggregate(sc.name, reports);
-    if (!opt->json.empty()) eval::writeAccuracyJson(opt->json, report);
-    if (!global.quiet) std::cout << eval::formatAccuracyTable(report);
+    if (!opt->out_dir.empty())
+      io::writeFileAtomically(std::filesystem::path(opt->out_dir) / "accuracy.md", markdown);
+    if (!opt->markdown.empty()) io::writeFileAtomically(opt->markdown, markdown);
     return 0;
   };
 }

@@ -122,4 +122,49 @@ std::string formatAccuracyTable(const AccuracyReport& report) {
          " runs (median ± sample std)\n" + detail::renderTable(rows);
 }
 
+std::string formatAccuracyMarkdown(const AccuracyReport& report) {
+  std::vector<std::string> keys;
+  for (const EstimatorStatistics& e : report.estimators) {
+    for (const auto& entry : e.metrics) detail::addUnique(keys, entry.first);
+  }
+  detail::sortMetricKeys(keys);
+  // Appended piece by piece (GCC 12 reports a false -Wrestrict on "literal" + std::string).
+  std::string md = "### ";
+  md += report.scenario;
+  md += " — ";
+  md += std::to_string(report.runs);
+  md += " runs, median (mean ± std)\n\n| metric |";
+  for (const EstimatorStatistics& e : report.estimators) {
+    md += ' ';
+    md += e.estimator;
+    md += " |";
+  }
+  md += "\n|---|";
+  for (size_t i = 0; i < report.estimators.size(); ++i) md += "---|";
+  md += "\n";
+  for (const std::string& key : keys) {
+    md += "| ";
+    md += key;
+    md += " |";
+    for (const EstimatorStatistics& e : report.estimators) {
+      const auto it = std::find_if(e.metrics.begin(), e.metrics.end(),
+                                   [&](const auto& entry) { return entry.first == key; });
+      md += ' ';
+      if (it == e.metrics.end()) {
+        md += '-';
+      } else {
+        md += detail::formatValue(it->second.median);
+        md += " (";
+        md += detail::formatValue(it->second.mean);
+        md += " ± ";
+        md += detail::formatValue(it->second.stddev);
+        md += ')';
+      }
+      md += " |";
+    }
+    md += "\n";
+  }
+  return md + "\n";
+}
+
 }  // namespace traverse::eval

@@ -61,5 +61,8 @@ void writeAccuracyJson(const std::filesystem::path& file, const AccuracyReport& 
 /// A plain-text table: one row per metric, one column per estimator, each cell
 /// "median ± std" (sample std over the runs).
 std::string formatAccuracyTable(const AccuracyReport& report);
+/// The same as a Markdown section: "### <scenario> — N runs", then one row per metric and one
+/// column per estimator, each cell "median (mean ± std)" ("-" when the estimator has none).
+std::string formatAccuracyMarkdown(const AccuracyReport& report);
 
 }  // namespace traverse::eval
