@@ -80,12 +80,12 @@ def main(out):
         table("planar-18m sun-sensor rate sweep (R §5), f_others / f_SS", "f_others / f_SS", sweep, keys)
         plot("sun-rate-sweep", "f_others / f_SS (others at 50 Hz)", sweep, keys)
     slip = load(os.path.join(out, "planar-18m-slip-*.json"),
-                lambda f: float(f.rsplit("-", 1)[1][:-5]))
+                lambda f: float(os.path.basename(f)[len("planar-18m-slip-"):-5]))
     if slip:
         table("planar-18m sensitivity to white wheel slip (m/s)", "slip σ (m/s)", slip, keys)
         plot("slip-sensitivity", "white wheel slip σ (m/s)", slip, keys, logx=True)
     bias = load(os.path.join(out, "planar-18m-biasrw-*.json"),
-                lambda f: float(f.rsplit("-", 1)[1][:-5]))
+                lambda f: float(os.path.basename(f)[len("planar-18m-biasrw-"):-5]))
     if bias:
         table("planar-18m sensitivity to gyro-bias drift (random walk, rad/s/√s)",
               "bias random walk", bias, keys + [("bias_z_error_dps", "bias z error (°/s)")])

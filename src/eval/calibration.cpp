@@ -38,13 +38,11 @@ struct Linear1 {
 struct TruthSample {
   double t = 0.0;
   Vec2 p = Vec2::Zero();
-  Vec2 var = Vec2::Zero();  ///< per-axis variance, m²
 };
 
 struct Increment {
   Linear2 odometry;  ///< A(t_b) − A(t_a)
   Vec2 z = Vec2::Zero();
-  Vec2 var = Vec2::Zero();  ///< the two samples' variance, per axis
   double travel = 0.0;
 };
 
@@ -145,14 +143,14 @@ OdometryCalibration calibrateOdometry(const io::TraverseLog& log, const est::Tra
     lever = log.config.gps.antenna_body_m;
     const PositionTruth pt(*log.gps, lever);
     for (const PositionFix& f : pt.fixes()) {
-      truth.push_back({f.t, f.p_site.head<2>(), f.sigma.head<2>().cwiseAbs2()});
+      truth.push_back({f.t, f.p_site.head<2>()});
     }
   } else if (log.truth && !log.truth->empty()) {
     out.truth_file = "truth.csv";
     const TruthTrajectory tt(*log.truth);
     for (Eigen::Index k = 0; k < log.truth->size(); ++k) {
       const double t = log.truth->t[k];
-      truth.push_back({t, tt.position(t).head<2>(), Vec2::Constant(1e-6)});  // 1 mm
+      truth.push_back({t, tt.position(t).head<2>()});
     }
   } else {
     throw InputError((log.dir / "gps.csv").string(), 0,
@@ -277,7 +275,6 @@ OdometryCalibration calibrateOdometry(const io::TraverseLog& log, const est::Tra
       interp(ts.t, a1, s1);
       inc.odometry.c = a1.c - a0.c, inc.odometry.e = a1.e - a0.e;
       inc.z = ts.p - anchor->p;
-      inc.var = ts.var + anchor->var;
       inc.travel = s1 - s0;
       if (inc.travel >= options.min_travel_m) incs.push_back(inc);
     }

@@ -19,6 +19,14 @@ ContactSolver::ContactSolver(const rover::RoverGeometry& geometry, const Terrain
   for (int i = 0; i < nw; ++i) {
     centre_height_ += (-kin[i].T_body_wheel.p.z() + geometry_.wheels[i].radius) / nw;
   }
+  const double limit = 0.49 * M_PI;  // as lowestRimPoint
+  const int n = options_.rim_scan_points;
+  for (int k = 0; k < n; ++k) {
+    const double candidate = -limit + 2.0 * limit * k / (n - 1);
+    scan_xi_.push_back(candidate);
+    scan_sin_.push_back(std::sin(candidate));
+    scan_cos_.push_back(std::cos(candidate));
+  }
 }
 
 Posed ContactSolver::bodyPose(double x, double y, double yaw, const ContactState& s) {
@@ -48,7 +56,11 @@ std::vector<ContactSolver::Rim> ContactSolver::rims(const Posed& T_site_body,
 
 // Vertical gap between the rim point at ξ and the terrain below it.
 double ContactSolver::gap(const Rim& rim, double xi) const {
-  const Vec3d p = rim.centre + rim.radius * (std::sin(xi) * rim.x_axis - std::cos(xi) * rim.z_axis);
+  return gap(rim, std::sin(xi), std::cos(xi));
+}
+
+double ContactSolver::gap(const Rim& rim, double sin_xi, double cos_xi) const {
+  const Vec3d p = rim.centre + rim.radius * (sin_xi * rim.x_axis - cos_xi * rim.z_axis);
   return p.z() - terrain_.height(p.x(), p.y());
 }
 
@@ -79,10 +91,9 @@ double ContactSolver::lowestRimPoint(const Rim& rim, double xi_start) const {
   };
   double xi = newton(xi_start);
   double best = gap(rim, xi);
-  const int n = options_.rim_scan_points;
-  for (int k = 0; k < n; ++k) {
-    const double candidate = -limit + 2.0 * limit * k / (n - 1);
-    if (gap(rim, candidate) < best - 1e-7) {
+  for (size_t k = 0; k < scan_xi_.size(); ++k) {
+    const double candidate = scan_xi_[k];
+    if (gap(rim, scan_sin_[k], scan_cos_[k]) < best - 1e-7) {
       const double refined = newton(candidate);
       const double g = gap(rim, refined);
       if (g < best) best = g, xi = refined;

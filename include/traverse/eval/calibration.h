@@ -78,9 +78,9 @@ struct OdometryCalibration {
   /// icr_centre ((y_ICR,L + y_ICR,R) / 2), those that were fitted.
   Eigen::MatrixXd correlation;
   std::vector<std::string> correlation_names;
+  /// Whether the ICR centre was fitted; else the ICRs moved symmetrically about rover.yaml's.
   bool icr_centre_fitted = false;
-  double turned_rad = 0.0;  ///< ∫|ω| dt over the yaw-rate samples  ///< else the ICRs moved
-                            ///< symmetrically about rover.yaml's centre
+  double turned_rad = 0.0;  ///< ∫|ω| dt over the yaw-rate samples
   double heading_offset_rad = 0.0, heading_offset_sigma_rad = 0.0;
   std::string truth_file;     ///< gps.csv or truth.csv
   ResidualGroup increments;   ///< horizontal, m (per axis)

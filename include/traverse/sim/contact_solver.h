@@ -79,6 +79,8 @@ class ContactSolver {
   };
   std::vector<Rim> rims(const Posed& T_site_body, const rover::JointVectord& q) const;
   double gap(const Rim& rim, double xi) const;
+  /// gap at an angle given by its sine and cosine (the scan's fixed angles, tabulated once).
+  double gap(const Rim& rim, double sin_xi, double cos_xi) const;
   double gapSlope(const Rim& rim, double xi) const;
   double lowestRimPoint(const Rim& rim, double xi_start) const;
   rover::JointVectord joints(const rover::JointVectord& suspension,
@@ -89,6 +91,7 @@ class ContactSolver {
   const Terrain& terrain_;
   ContactSolverOptions options_;
   double centre_height_ = 0.0;  ///< wheel-centre z below the body at zero joint angles (mean)
+  std::vector<double> scan_xi_, scan_sin_, scan_cos_;  ///< lowestRimPoint's scan angles
 };
 
 }  // namespace traverse::sim

@@ -91,10 +91,16 @@ class RoughTerrain final : public Terrain {
   };
   template <typename F>
   void forNearby(double x, double y, F&& f) const;
+  template <typename F>
+  void forCells(int i0, int j0, F&& f) const;  ///< the bumps of the 3 × 3 cells around (i0, j0)
   Options o_;
   double cell_;
   int nx_ = 0, ny_ = 0;
   std::vector<std::vector<Bump>> grid_;
+  static constexpr int kSub = 4;  ///< sub-cells per cell side in near_
+  /// Per sub-cell (cell index × kSub², row-major): the bumps that can reach it, in forNearby's
+  /// order.
+  std::vector<std::vector<Bump>> near_;
 };
 
 /// Sum of terrains (e.g. rough terrain on a slope).
