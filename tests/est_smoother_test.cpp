@@ -410,6 +410,40 @@ TEST(Smoother, RandomWalkBiasNeedsARandomWalkNoise) {
     EXPECT_NE(g.status, SegmentStatus::kFallbackEkf);
 }
 
+// BiasModel::kAuto's rule, at hand-checked values: the gyro's white density is
+// σ_w = 0.0031 · √0.05 = 6.93e-4 rad/√s (Rocky-7's gyro at 20 Hz); the random walk pays when
+// q · T > σ_w.
+TEST(Smoother, AutoBiasModelRule) {
+  EXPECT_FALSE(randomWalkBiasPays(0.0, 0.0031, 0.05, 1000.0));  // no declared drift
+  EXPECT_TRUE(randomWalkBiasPays(5e-4, 0.0031, 0.05, 180.0));   // 0.09 > 6.93e-4
+  EXPECT_FALSE(randomWalkBiasPays(5e-4, 0.0031, 0.05, 1.0));    // 5e-4 < 6.93e-4
+  EXPECT_FALSE(randomWalkBiasPays(2e-5, 0.0031, 0.05, 30.0));   // 6.0e-4 < 6.93e-4
+  EXPECT_TRUE(randomWalkBiasPays(2e-5, 0.0031, 0.05, 40.0));    // 8.0e-4 > 6.93e-4
+  EXPECT_FALSE(randomWalkBiasPays(1e-3, 0.0031, 0.05, 0.0));    // an empty segment
+}
+
+// kAuto (the default) on a log: without declared drift every segment keeps one constant bias;
+// with a drift that is large over the segments' length, the motion segments take the random
+// walk and converge (no fallback).
+TEST(Smoother, AutoBiasModelFollowsTheDeclaredDrift) {
+  sim::Simulation s = simulate("straight-1m", {});
+  s.log.config.gyro.bias_random_walk_rad_s_per_sqrt_s = 0.0;
+  SmootherOptions options;
+  ASSERT_EQ(options.bias_model, SmootherOptions::BiasModel::kAuto);
+  const pipeline::Estimates constant = estimateSmoothed(s.log, options);
+  ASSERT_TRUE(constant.smoothed.has_value());
+  for (const SegmentSummary& g : constant.smoothed->segments) EXPECT_FALSE(g.random_walk_bias);
+  s.log.config.gyro.bias_random_walk_rad_s_per_sqrt_s = 1e-3;
+  const pipeline::Estimates drifting = estimateSmoothed(s.log, options);
+  ASSERT_TRUE(drifting.smoothed.has_value());
+  int random_walk = 0;
+  for (const SegmentSummary& g : drifting.smoothed->segments) {
+    random_walk += g.random_walk_bias;
+    EXPECT_NE(g.status, SegmentStatus::kFallbackEkf) << g.message;
+  }
+  EXPECT_GE(random_walk, 1);
+}
+
 // Marginal covariances: symmetric positive definite at every node; the position uncertainty
 // grows through each leg (dead reckoning between the gauge at the segment's start and the rest
 // window after it).

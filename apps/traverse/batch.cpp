@@ -212,7 +212,7 @@ int runBatch(const std::vector<std::string>& log_dirs, const PipelineOptions& op
     if (state != "ok" && message.empty()) message = errorLine(j.out / "stderr.txt");
     Json s = Json::object();
     s["log"] = fs::absolute(j.log_dir).lexically_normal().string();
-    s["command"] = smooth ? "run" : "filter";
+    s["command"] = smooth ? options.command_name : "filter";
     s["status"] = state;
     s["exit_code"] = code;
     s["message"] = message;
@@ -232,8 +232,9 @@ int runBatch(const std::vector<std::string>& log_dirs, const PipelineOptions& op
   };
   auto spawn = [&](Job& j) {
     fs::create_directories(j.out);
-    std::vector<std::string> argv_s = {exe.string(), smooth ? "run" : "filter", j.log_dir, "-o",
-                                       j.out.string()};
+    std::vector<std::string> argv_s = {exe.string(),
+                                       smooth ? options.command_name : std::string("filter"),
+                                       j.log_dir, "-o", j.out.string()};
     argv_s.insert(argv_s.end(), args.begin(), args.end());
     if (smooth) {  // the cores shared out between the logs running at once
       const int threads =

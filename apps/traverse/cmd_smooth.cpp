@@ -12,6 +12,7 @@ namespace {
 Command addSmoothingCommand(CLI::App& app, const GlobalOptions& global, const char* name,
                             const char* help) {
   auto opt = std::make_shared<PipelineOptions>();
+  opt->command_name = name;
   CLI::App* cmd = app.add_subcommand(name, help);
   addPipelineOptions(*cmd, *opt);
   addSmootherOptions(*cmd, *opt);

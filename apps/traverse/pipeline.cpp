@@ -70,8 +70,10 @@ void addSmootherOptions(CLI::App& cmd, PipelineOptions& o) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd.add_option("--bias-model", o.bias_model,
-                 "Gyro bias per segment: constant, or random-walk (one per node, K-9)")
-      ->check(CLI::IsMember({"constant", "random-walk"}))
+                 "Gyro bias per segment: constant, random-walk (one per node, K-9), or auto "
+                 "(random walk where rover.yaml's drift over the segment exceeds the gyro's "
+                 "resolution of a constant bias)")
+      ->check(CLI::IsMember({"auto", "constant", "random-walk"}))
       ->capture_default_str();
   cmd.add_option("--loss", o.loss,
                  "Robust loss on the sun and slip residuals: huber, cauchy or none (default: "
@@ -116,8 +118,10 @@ pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   c.joints_clock_offset_s = o.joints_clock_offset_s;
   auto& so = c.smoother;
   so.node_period_s = o.node_period_s;
-  so.bias_model = o.bias_model == "random-walk" ? smoother::SmootherOptions::BiasModel::kRandomWalk
-                                                : smoother::SmootherOptions::BiasModel::kConstant;
+  using BiasModel = smoother::SmootherOptions::BiasModel;
+  so.bias_model = o.bias_model == "random-walk" ? BiasModel::kRandomWalk
+                  : o.bias_model == "constant"  ? BiasModel::kConstant
+                                                : BiasModel::kAuto;
   using Loss = smoother::SmootherOptions::Loss;
   so.loss = o.loss == "cauchy"  ? Loss::kCauchy
             : o.loss == "none"  ? Loss::kNone
@@ -306,9 +310,13 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
           fallback += g.status == smoother::SegmentStatus::kFallbackEkf;
       solve += g.solve_seconds, cov += g.covariance_seconds, nodes += g.num_nodes;
     }
+    int random_walk = 0;
+    for (const auto& g : e.smoothed->segments) random_walk += g.random_walk_bias;
     out << "smoother: " << e.smoothed->segments.size() << " segments (" << converged
         << " converged, " << fallback << " fell back to the EKF), " << nodes << " nodes; solve "
-        << solve << " s, covariance " << cov << " s (CPU, summed)\n";
+        << solve << " s, covariance " << cov << " s (CPU, summed)";
+    if (random_walk > 0) out << "; gyro bias a random walk in " << random_walk << " of them";
+    out << "\n";
     for (const auto& g : e.smoothed->segments) {
       if (g.status == smoother::SegmentStatus::kFallbackEkf)
         out << "smoother: segment " << g.index << " (" << g.t_start << " .. " << g.t_end
@@ -333,7 +341,7 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   if (write_report) {
     report::ReportInput in;
     in.log_name = metrics.log;
-    std::string command = std::string("traverse run ") + o.log_dir + " -o " + o.out_dir;
+    std::string command = "traverse " + o.command_name + " " + o.log_dir + " -o " + o.out_dir;
     for (const std::string& a : pipelineArguments(o, smooth)) command += " " + a;
     in.command = command;
     in.log = &log;

@@ -30,14 +30,15 @@ struct PipelineOptions {
   std::optional<double> joints_clock_offset_s;
   // Smoother (smooth, run).
   double node_period_s = 0.0;
-  std::string bias_model = "constant";
+  std::string bias_model = "auto";
   std::string loss;                 ///< empty: rover.yaml's choice
   double loss_scale = 0.0;          ///< 0: rover.yaml's choice
   double contact_loss_scale = 1.0;  ///< SmootherOptions::contact_loss_scale
   int max_iterations = 50;
   int threads = 0;
   bool no_covariance = false, solver_report = false;
-  bool no_report = false;  ///< smooth, run: no report.html
+  bool no_report = false;            ///< smooth, run: no report.html
+  std::string command_name = "run";  ///< the subcommand that was given (run or smooth)
 };
 
 void addPipelineOptions(CLI::App& cmd, PipelineOptions& options);

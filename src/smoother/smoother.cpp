@@ -3,6 +3,7 @@
 #include "traverse/smoother/smoother.h"
 
 #include <atomic>
+#include <cmath>
 #include <exception>
 #include <mutex>
 #include <thread>
@@ -79,6 +80,13 @@ void stitch(SegmentSolution& b, size_t ref, const est::TrajectoryNode& anchor,
 
 }  // namespace
 
+bool randomWalkBiasPays(double q, double gyro_noise_rad_s, double gyro_period_s,
+                        double segment_seconds) {
+  if (!(q > 0.0) || !(segment_seconds > 0.0)) return false;
+  const double white_density = gyro_noise_rad_s * std::sqrt(gyro_period_s);
+  return q * segment_seconds > white_density;
+}
+
 SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
                       const est::Trajectory& ekf, const SmootherOptions& options) {
   const SmootherData data(log, ekf, options);
@@ -96,7 +104,22 @@ SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
     pool.emplace_back([&] {
       for (size_t s; (s = next++) < specs.size();) {
         try {
-          solutions[s] = solveSegment(data, specs[s].first, options);
+          SmootherOptions segment_options = options;
+          if (options.bias_model == SmootherOptions::BiasModel::kAuto) {
+            const SegmentSpec& spec = specs[s].first;
+            const double seconds =
+                spec.last < data.nodes.size() && spec.first <= spec.last
+                    ? data.joints[data.nodes[spec.last]].t - data.joints[data.nodes[spec.first]].t
+                    : 0.0;
+            segment_options.bias_model =
+                randomWalkBiasPays(log.config.gyro.bias_random_walk_rad_s_per_sqrt_s,
+                                   log.config.gyro.noise_rad_s, data.gyro_period_s, seconds)
+                    ? SmootherOptions::BiasModel::kRandomWalk
+                    : SmootherOptions::BiasModel::kConstant;
+          }
+          solutions[s] = solveSegment(data, specs[s].first, segment_options);
+          solutions[s].summary.random_walk_bias =
+              segment_options.bias_model == SmootherOptions::BiasModel::kRandomWalk;
         } catch (...) {
           std::lock_guard<std::mutex> lock(error_mutex);
           if (!error) error = std::current_exception();
