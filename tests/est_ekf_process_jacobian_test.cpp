@@ -300,6 +300,45 @@ TEST(EstEkfProcessJacobian, SparseCovariancePropagationMatchesDense) {
   }
 }
 
+// rover.yaml's common contact-angle density n_c: the process noise's contact-angle block is
+// n_ξ² I Δt + (n_c² − n_ξ²)/N Δt 1 1ᵀ (eigenvalues n_ξ² Δt for the differences between wheels,
+// n_c² Δt for their mean), and nothing else changes.
+TEST(EstEkfProcessJacobian, CommonContactModeHasItsOwnDensity) {
+  const Fixture fx;
+  std::mt19937 rng(43);
+  io::RoverConfig config = fx.config;
+  const double n = config.process.contact_angle_noise_rad_per_sqrt_s, n_c = 0.2 * n;
+  config.process.common_contact_angle_noise_rad_per_sqrt_s = n_c;
+  const Variant v{false, false, false, true};
+  Ekf plain = makeEkf(fx, v);
+  Ekf common(config, testing::rocky7(), optionsFor(v), fx.init, v.three_axis, v.has_cmd);
+  const EkfState x = randomState(rng);
+  const EkfInputs in = randomInputs(rng, v, x, fx.config.gravity_mps2);
+  const EkfMatrix P = randomCovariance(rng);
+  const double dt = 0.02;
+  for (Ekf* e : {&plain, &common}) {
+    e->setState(x);
+    e->setCovariance(P);
+    e->propagate(dt, in);
+  }
+  const EkfMatrix dQ = common.covariance() - plain.covariance();
+  const int nw = 6, k = EkfIndex::kXi;
+  const Eigen::MatrixXd expected = Eigen::MatrixXd::Constant(nw, nw, (n_c * n_c - n * n) / nw * dt);
+  const double roundoff = 1e-13 * plain.covariance().cwiseAbs().maxCoeff();
+  EXPECT_LE((dQ.block(k, k, nw, nw) - expected).cwiseAbs().maxCoeff(), roundoff);
+  EXPECT_GT(expected.cwiseAbs().minCoeff(), 100 * roundoff);  // the test can see the change
+  EkfMatrix rest = dQ;
+  rest.block(k, k, nw, nw).setZero();
+  EXPECT_LE(rest.cwiseAbs().maxCoeff(), roundoff);
+  // The mean of the six angles gains n_c² Δt / 6, a difference between two of them 2 n_ξ² Δt.
+  const Eigen::VectorXd mean = Eigen::VectorXd::Constant(nw, 1.0 / nw);
+  Eigen::VectorXd diff = Eigen::VectorXd::Zero(nw);
+  diff[0] = 1.0, diff[1] = -1.0;
+  const Eigen::MatrixXd Qxi = expected + Eigen::MatrixXd::Identity(nw, nw) * n * n * dt;
+  EXPECT_NEAR(mean.dot(Qxi * mean), n_c * n_c * dt / nw, 1e-15);
+  EXPECT_NEAR(diff.dot(Qxi * diff), 2.0 * n * n * dt, 1e-15);
+}
+
 /// H with M rows on a random subset of the columns (the rest exactly zero).
 template <int M>
 EkfRows<M> randomSparseH(std::mt19937& rng) {

@@ -82,6 +82,27 @@ TEST_F(IoRoverConfig, GyroRatePerturbationIsOptionalAndSaved) {
               "rate_perturbation_rad_s2_per_sqrt_hz");
 }
 
+// process.common_contact_angle_noise_rad_per_sqrt_s: optional (absent: each wheel's n_ξ), saved
+// back, and never above n_ξ (the wheels' mean cannot be noisier than each angle) nor zero.
+TEST_F(IoRoverConfig, CommonContactAngleNoiseIsOptionalBoundedAndSaved) {
+  const RoverConfig d = loadRoverConfig(write("format: 1\n"));
+  EXPECT_FALSE(d.process.common_contact_angle_noise_rad_per_sqrt_s);
+  EXPECT_EQ(d.process.commonContactAngleNoise(), d.process.contact_angle_noise_rad_per_sqrt_s);
+  const RoverConfig c =
+      loadRoverConfig(write("format: 1\nprocess:\n  contact_angle_noise_rad_per_sqrt_s: 0.05\n"
+                            "  common_contact_angle_noise_rad_per_sqrt_s: 0.01\n"));
+  EXPECT_EQ(c.process.commonContactAngleNoise(), 0.01);
+  const std::filesystem::path saved = dir_ / "saved.yaml";
+  saveRoverConfig(saved, c);
+  EXPECT_EQ(*loadRoverConfig(saved).process.common_contact_angle_noise_rad_per_sqrt_s, 0.01);
+  expectError(
+      "format: 1\nprocess:\n  contact_angle_noise_rad_per_sqrt_s: 0.05\n"
+      "  common_contact_angle_noise_rad_per_sqrt_s: 0.06\n",
+      4, "must not exceed process.contact_angle_noise_rad_per_sqrt_s");
+  expectError("format: 1\nprocess:\n  common_contact_angle_noise_rad_per_sqrt_s: 0\n", 3,
+              "common_contact_angle_noise_rad_per_sqrt_s");
+}
+
 TEST_F(IoRoverConfig, MissingKeysTakeDefaults) {
   const RoverConfig c = loadRoverConfig(write("format: 1\n"));
   const RoverConfig d;

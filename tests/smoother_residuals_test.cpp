@@ -895,6 +895,63 @@ TEST(SmootherResidualMarkovComponent, MatchesTheBlockRowAndIsHandChecked) {
   EXPECT_NEAR(evaluate(wheel3, {y0, y1})[0], (0.5 - phi * 0.2) / sigma, 1e-9);
 }
 
+// The contact angles' common mode (MarkovCommonMode): Jacobians against numerical
+// differentiation at random states; the n per-wheel rows plus the common row carry exactly the
+// information of the correlated process, JᵀJ = Q_d⁻¹ with Q_d = σ² (I + (ρ − 1)/n 1 1ᵀ),
+// ρ = q_c/q; and a hand value: random walk (a = 0), Δt = 1, q = 1, q_c = 0.25, n = 4,
+// y_k = 0, y_{k+1} = (1, 1, 1, 1): r = √(4 · 3) · 1 = 3.4641.
+TEST(SmootherResidualMarkovCommonMode, CarriesTheCorrelatedProcessInformation) {
+  std::mt19937 rng(23);
+  for (int trial = 0; trial < kTrials; ++trial) {
+    SCOPED_TRACE(trial);
+    const double dt = uniform(rng, 0.05, 0.2), a = trial % 3 == 0 ? 0.0 : -uniform(rng, 0.2, 2.0);
+    const double q = uniform(rng, 1e-4, 0.01), q_c = q * uniform(rng, 0.01, 0.9);
+    const int n = 4 + trial % 3;
+    const DynamicAnalyticCost<MarkovCommonMode> common(n, dt, a, q, q_c);
+    std::vector<double> y0(static_cast<size_t>(n)), y1(static_cast<size_t>(n));
+    for (int i = 0; i < n; ++i) y0[i] = uniform(rng, -0.3, 0.3), y1[i] = uniform(rng, -0.3, 0.3);
+    checkCostFunctionJacobians(common, {y0, y1}, {false, false});
+    // Information on y_{k+1} (y_k held): the per-wheel rows' and the common row's.
+    Eigen::MatrixXd info = Eigen::MatrixXd::Zero(n, n);
+    for (int i = 0; i < n; ++i) {
+      const MarkovComponentResidual one(i, n, dt, a, q);
+      std::vector<double> j0(static_cast<size_t>(n)), j1(static_cast<size_t>(n));
+      double* jac[2] = {j0.data(), j1.data()};
+      evaluate(one, {y0, y1}, jac);
+      const Eigen::Map<Eigen::RowVectorXd> row(j1.data(), n);
+      info += row.transpose() * row;
+    }
+    std::vector<double> c0(static_cast<size_t>(n)), c1(static_cast<size_t>(n));
+    double* cjac[2] = {c0.data(), c1.data()};
+    evaluate(common, {y0, y1}, cjac);
+    const Eigen::Map<Eigen::RowVectorXd> crow(c1.data(), n);
+    info += crow.transpose() * crow;
+    const MarkovStep step(dt, a, q);
+    const double var = 1.0 / (step.sqrt_info * step.sqrt_info);
+    const Eigen::MatrixXd Qd = var * (Eigen::MatrixXd::Identity(n, n) +
+                                      Eigen::MatrixXd::Constant(n, n, (q_c / q - 1.0) / n));
+    EXPECT_LE((info * Qd - Eigen::MatrixXd::Identity(n, n)).cwiseAbs().maxCoeff(), 1e-9);
+    // The stationary prior: the same split of N(0, (q/(−2a)) (I + (ρ − 1)/n 1 1ᵀ)).
+    if (a < 0) {
+      const DynamicAnalyticCost<MarkovCommonMode> prior(MarkovCommonMode::stationary(n, a, q, q_c));
+      checkCostFunctionJacobians(prior, {y0}, {false});
+      std::vector<double> p0(static_cast<size_t>(n));
+      double* pjac[1] = {p0.data()};
+      evaluate(prior, {y0}, pjac);
+      const Eigen::Map<Eigen::RowVectorXd> prow(p0.data(), n);
+      const double s2 = q / (-2.0 * a);
+      const Eigen::MatrixXd pinfo = Eigen::MatrixXd::Identity(n, n) / s2 + prow.transpose() * prow;
+      const Eigen::MatrixXd P = s2 * (Eigen::MatrixXd::Identity(n, n) +
+                                      Eigen::MatrixXd::Constant(n, n, (q_c / q - 1.0) / n));
+      EXPECT_LE((pinfo * P - Eigen::MatrixXd::Identity(n, n)).cwiseAbs().maxCoeff(), 1e-9);
+    }
+  }
+  const DynamicAnalyticCost<MarkovCommonMode> hand(4, 1.0, 0.0, 1.0, 0.25);
+  EXPECT_NEAR(evaluate(hand, {{0, 0, 0, 0}, {1, 1, 1, 1}})[0], std::sqrt(12.0), 1e-12);
+  EXPECT_NEAR(evaluate(hand, {{1, 1, 1, 1}, {1, 1, 1, 1}})[0], 0.0, 1e-12);    // a = 0: φ = 1
+  EXPECT_NEAR(evaluate(hand, {{0, 0, 0, 0}, {1, -1, 1, -1}})[0], 0.0, 1e-12);  // no common part
+}
+
 // The whitening, statistically: simulate ẏ = a y + n (m = 0) by Euler-Maruyama on a grid 200×
 // finer than Δt and check that the residuals have unit variance and no lag-1 correlation.
 TEST(SmootherResidualMarkovProcess, WhitensASimulatedProcess) {
@@ -980,8 +1037,9 @@ TEST(SmootherResidualCollector, EqualFunctorsShareACostFunctionAndTheCostIsCeres
   addRateProcess(out, rate, 0.05, -1.0, 0.01, cmd, cmd, h[0], h[1]);  // 3: new
   addRateProcess(out, rate, 0.05, -1.0, 0.01, cmd, cmd, h[1], h[2]);  // 4: shared
   addRateProcess(out, rate, 0.05, -1.0, 0.01, cmd, Vec3d::Zero(), h[1], h[2]);  // 5: mean differs
-  addContactProcess(out, contact, 0.05, 2.0, 0.05, &loss, h[0], h[1]);  // 6–11: one per wheel
-  addContactProcess(out, contact, 0.05, 2.0, 0.05, &loss, h[1], h[2]);  // 12–17: shared per wheel
+  addContactProcess(out, contact, 0.05, 2.0, 0.05, 0.05, &loss, h[0], h[1]);  // 6–11: one per wheel
+  addContactProcess(out, contact, 0.05, 2.0, 0.05, 0.05, &loss, h[1],
+                    h[2]);  // 12–17: shared per wheel
   addGyroIncrement(out, 0.05, Vec3d(0.001, 0.0, 0.002), 0.003, 0.01, Vec3d(0, 0, 1), h[0], h[1]);
 
   const std::vector<ResidualEntry>& e = out.entries();

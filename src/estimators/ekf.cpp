@@ -113,6 +113,14 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   P_.block(I::kXi, I::kXi, nw_, nw_)
       .diagonal()
       .setConstant(std::pow(options.initial_contact_sigma_rad, 2));
+  {  // the common mode of the wheels' angles starts no wider than its stationary σ
+    const auto& pc = config.process;
+    const double common_sigma =
+        pc.commonContactAngleNoise() * std::sqrt(0.5 * pc.contact_angle_time_constant_s);
+    const double v0 = std::pow(options.initial_contact_sigma_rad, 2);
+    const double vc = std::min(v0, common_sigma * common_sigma);
+    P_.block(I::kXi, I::kXi, nw_, nw_).array() += (vc - v0) / nw_;
+  }
   P_.block<3, 3>(I::kBias, I::kBias) = init.bias_sigma.cwiseAbs2().asDiagonal();
   if (nc_ > 0) {  // the process' steady state
     const auto& sn = config.slip_noise;
@@ -247,6 +255,13 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   }
   detail::propagateCovarianceInPlace(lin.F, dt, &P_);
   P_.diagonal() += qc * dt;  // white process noise over dt (first order)
+  // The contact angles' common mode has its own density n_c (rover.yaml): Q_ξ = n_ξ² I +
+  // (n_c² − n_ξ²)/N 1 1ᵀ, eigenvalues n_ξ² (differences between wheels) and n_c² (their mean).
+  if (pc.common_contact_angle_noise_rad_per_sqrt_s)
+    P_.block(I::kXi, I::kXi, nw_, nw_).array() +=
+        (std::pow(*pc.common_contact_angle_noise_rad_per_sqrt_s, 2) -
+         std::pow(pc.contact_angle_noise_rad_per_sqrt_s, 2)) /
+        nw_ * dt;
   P_ = 0.5 * (P_ + P_.transpose());
 
   // Nominal state (midpoint rule).

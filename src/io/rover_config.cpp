@@ -142,17 +142,26 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   c.odometry.wheel_radius_scale_right = r.number(od, "odometry", "wheel_radius_scale_right",
                                                  c.odometry.wheel_radius_scale_right, 0.5, 2.0);
 
-  const YAML::Node p =
-      r.section(root, "process",
-                {"contact_angle_time_constant_s", "contact_angle_noise_rad_per_sqrt_s",
-                 "velocity_time_constant_s", "velocity_noise_mps2_per_sqrt_hz",
-                 "rate_time_constant_s", "rate_noise_rad_s2_per_sqrt_hz"});
+  const YAML::Node p = r.section(
+      root, "process",
+      {"contact_angle_time_constant_s", "contact_angle_noise_rad_per_sqrt_s",
+       "common_contact_angle_noise_rad_per_sqrt_s", "velocity_time_constant_s",
+       "velocity_noise_mps2_per_sqrt_hz", "rate_time_constant_s", "rate_noise_rad_s2_per_sqrt_hz"});
   auto& pc = c.process;
   pc.contact_angle_time_constant_s = r.number(p, "process", "contact_angle_time_constant_s",
                                               pc.contact_angle_time_constant_s, 1e-3, 1e6);
   pc.contact_angle_noise_rad_per_sqrt_s =
       r.number(p, "process", "contact_angle_noise_rad_per_sqrt_s",
                pc.contact_angle_noise_rad_per_sqrt_s, 0.0, 10.0);
+  if (p && p["common_contact_angle_noise_rad_per_sqrt_s"].IsDefined()) {
+    pc.common_contact_angle_noise_rad_per_sqrt_s =
+        r.number(p, "process", "common_contact_angle_noise_rad_per_sqrt_s", 0.0, 1e-6, 10.0);
+    if (*pc.common_contact_angle_noise_rad_per_sqrt_s > pc.contact_angle_noise_rad_per_sqrt_s)
+      r.fail(p["common_contact_angle_noise_rad_per_sqrt_s"],
+             "process.common_contact_angle_noise_rad_per_sqrt_s",
+             "must not exceed process.contact_angle_noise_rad_per_sqrt_s (the common mode of "
+             "the wheels' angles cannot be noisier than each angle)");
+  }
   pc.velocity_time_constant_s =
       r.number(p, "process", "velocity_time_constant_s", pc.velocity_time_constant_s, 1e-3, 1e6);
   pc.velocity_noise_mps2_per_sqrt_hz = r.number(p, "process", "velocity_noise_mps2_per_sqrt_hz",
@@ -369,12 +378,15 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   out << YAML::Key << "process" << YAML::Value << YAML::BeginMap << YAML::Key
       << "contact_angle_time_constant_s" << YAML::Value << num(p.contact_angle_time_constant_s)
       << YAML::Key << "contact_angle_noise_rad_per_sqrt_s" << YAML::Value
-      << num(p.contact_angle_noise_rad_per_sqrt_s) << YAML::Key << "velocity_time_constant_s"
-      << YAML::Value << num(p.velocity_time_constant_s) << YAML::Key
-      << "velocity_noise_mps2_per_sqrt_hz" << YAML::Value << num(p.velocity_noise_mps2_per_sqrt_hz)
-      << YAML::Key << "rate_time_constant_s" << YAML::Value << num(p.rate_time_constant_s)
-      << YAML::Key << "rate_noise_rad_s2_per_sqrt_hz" << YAML::Value
-      << num(p.rate_noise_rad_s2_per_sqrt_hz) << YAML::EndMap;
+      << num(p.contact_angle_noise_rad_per_sqrt_s);
+  if (p.common_contact_angle_noise_rad_per_sqrt_s)  // absent = the default: files unchanged
+    out << YAML::Key << "common_contact_angle_noise_rad_per_sqrt_s" << YAML::Value
+        << num(*p.common_contact_angle_noise_rad_per_sqrt_s);
+  out << YAML::Key << "velocity_time_constant_s" << YAML::Value << num(p.velocity_time_constant_s)
+      << YAML::Key << "velocity_noise_mps2_per_sqrt_hz" << YAML::Value
+      << num(p.velocity_noise_mps2_per_sqrt_hz) << YAML::Key << "rate_time_constant_s"
+      << YAML::Value << num(p.rate_time_constant_s) << YAML::Key << "rate_noise_rad_s2_per_sqrt_hz"
+      << YAML::Value << num(p.rate_noise_rad_s2_per_sqrt_hz) << YAML::EndMap;
   out << YAML::Key << "joint_sensors" << YAML::Value << YAML::BeginMap << YAML::Key
       << "angle_noise_rad" << YAML::Value << num(c.joints.angle_noise_rad) << YAML::Key
       << "steering_noise_rad" << YAML::Value << num(c.joints.steeringNoise()) << YAML::Key

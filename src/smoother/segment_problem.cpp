@@ -345,7 +345,8 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
   }
   // Contact angles (K-8): per wheel under a heavy-tailed loss, or the Gaussian process.
   addContactProcess(residuals_, contact_memo_, dt, pc.contact_angle_time_constant_s,
-                    pc.contact_angle_noise_rad_per_sqrt_s, contact_loss_.get(), a, b);
+                    pc.contact_angle_noise_rad_per_sqrt_s, pc.commonContactAngleNoise(),
+                    contact_loss_.get(), a, b);
   // Gyro increments (K-12/K-13 integrated; O-1), except inside rest windows, whose readings
   // the rest-bias residual carries.
   if (!at_rest && !d_.gyro_gaps.overlaps(t0, t1))
@@ -423,7 +424,8 @@ void SegmentBuilder::addStartPriors() {
                 s.covariance.bottomRightCorner<3, 3>(), handles_[0]);
   // Contact angles start from the stationary distribution of K-8.
   addContactPrior(residuals_, cfg_.process.contact_angle_time_constant_s,
-                  cfg_.process.contact_angle_noise_rad_per_sqrt_s, handles_[0]);
+                  cfg_.process.contact_angle_noise_rad_per_sqrt_s,
+                  cfg_.process.commonContactAngleNoise(), handles_[0]);
   if (nc_ > 0) addCommonSlipPrior(residuals_, cfg_.slip_noise, handles_[0]);
   // Without a rest window the bias keeps the EKF's estimate as a prior.
   if (spec_.rests.empty() || !o_.use_rest)

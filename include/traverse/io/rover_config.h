@@ -59,10 +59,19 @@ using SlipNoiseConfig = rover::SlipNoise;
 struct ProcessConfig {
   double contact_angle_time_constant_s = 2.0;        ///< A_ξ = −1/τ (K-8)
   double contact_angle_noise_rad_per_sqrt_s = 0.05;  ///< n_ξ density
-  double velocity_time_constant_s = 1.0;             ///< A_v = −1/τ (K-1)
-  double velocity_noise_mps2_per_sqrt_hz = 0.05;     ///< n_v density
-  double rate_time_constant_s = 1.0;                 ///< A_ω = −1/τ (K-2)
-  double rate_noise_rad_s2_per_sqrt_hz = 0.05;       ///< n_ω density
+  /// n_c ≤ n_ξ: density of the wheels' common contact-angle mode (their mean), same τ. Absent:
+  /// n_ξ (every wheel independent). The common mode is the terrain's slope under the rover
+  /// relative to the body, which the body's own attitude takes up for a rover resting on its
+  /// wheels; left at n_ξ it trades freely against vertical velocity where nothing measures that
+  /// (docs/model.md "Common contact-angle mode"). Q_ξ = n_ξ² I + (n_c² − n_ξ²)/N · 1 1ᵀ.
+  std::optional<double> common_contact_angle_noise_rad_per_sqrt_s;
+  double commonContactAngleNoise() const {
+    return common_contact_angle_noise_rad_per_sqrt_s.value_or(contact_angle_noise_rad_per_sqrt_s);
+  }
+  double velocity_time_constant_s = 1.0;          ///< A_v = −1/τ (K-1)
+  double velocity_noise_mps2_per_sqrt_hz = 0.05;  ///< n_v density
+  double rate_time_constant_s = 1.0;              ///< A_ω = −1/τ (K-2)
+  double rate_noise_rad_s2_per_sqrt_hz = 0.05;    ///< n_ω density
 };
 
 struct JointSensorConfig {

@@ -130,6 +130,65 @@ class MarkovComponent {
 /// Cost function: parameter blocks y_k, y_{k+1} (n each), one row.
 using MarkovComponentResidual = DynamicAnalyticCost<MarkovComponent>;
 
+/// The extra information on the common mode (the mean over components) of a zero-mean
+/// n-dimensional process whose components have density q each and whose mean has the smaller
+/// density q_c (per-component units): Q = q I + (q_c − q)/n · 1 1ᵀ. Its information is
+/// Q⁻¹ = (1/q) (I + (q/q_c − 1)/n · 1 1ᵀ): the n per-component rows (MarkovComponent) carry
+/// (1/q) I, and this one row the rank-one rest,
+///   r = √(n (q/q_c − 1)) · (ȳ_{k+1} − φ ȳ_k) / σ,   ȳ = mean of the components,
+/// σ the per-component step's (MarkovStep with q). With dt = 0 and `stationary` the same for
+/// the stationary prior at a segment's first node, r = √(n (q/q_c − 1)) · ȳ_k / σ_stat (one
+/// block). The smoother uses it for the contact angles' common mode (rover.yaml
+/// process.common_contact_angle_noise_rad_per_sqrt_s).
+class MarkovCommonMode {
+ public:
+  /// Transition between two nodes.
+  MarkovCommonMode(int size, double dt, double a, double q, double q_common)
+      : n_(size), blocks_(2), phi_(MarkovStep(dt, a, q).phi) {
+    weight_ = std::sqrt(size * (q / q_common - 1.0)) * MarkovStep(dt, a, q).sqrt_info;
+  }
+  /// Stationary prior (one block): σ_stat² = q/(−2a) per component.
+  static MarkovCommonMode stationary(int size, double a, double q, double q_common) {
+    MarkovCommonMode m(size, 1.0, a, q, q_common);
+    m.blocks_ = 1, m.phi_ = 0.0;
+    m.weight_ = std::sqrt(size * (q / q_common - 1.0)) / std::sqrt(q / (-2.0 * a));
+    return m;
+  }
+  int numResiduals() const { return 1; }
+  std::vector<int> blockSizes() const { return std::vector<int>(static_cast<size_t>(blocks_), n_); }
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+    const double w = weight_ / n_;
+    double r = 0.0;
+    if (blocks_ == 1) {
+      for (int i = 0; i < n_; ++i) r += parameters[0][i];
+    } else {
+      for (int i = 0; i < n_; ++i) r += parameters[1][i] - phi_ * parameters[0][i];
+    }
+    residuals[0] = w * r;
+    if (jacobians) {
+      if (blocks_ == 1) {
+        if (jacobians[0]) std::fill(jacobians[0], jacobians[0] + n_, w);
+      } else {
+        if (jacobians[0]) std::fill(jacobians[0], jacobians[0] + n_, -phi_ * w);
+        if (jacobians[1]) std::fill(jacobians[1], jacobians[1] + n_, w);
+      }
+    }
+    return true;
+  }
+
+  double weight() const { return weight_; }
+  bool operator==(const MarkovCommonMode&) const = default;
+
+  static ceres::CostFunction* Create(const MarkovCommonMode& f) {
+    return new DynamicAnalyticCost<MarkovCommonMode>(f);
+  }
+
+ private:
+  int n_, blocks_;
+  double phi_, weight_ = 0.0;
+};
+
 /// The process's stationary distribution at a segment's first node (e.g. K-8's contact angles,
 /// ξ ~ N(0, q τ / 2)): r = y / σ, one block of sigma.size(). Without it a contact angle no wheel
 /// constrains would be unobservable.
@@ -188,8 +247,11 @@ inline void addVelocityProcess(ResidualCollector& out, CostMemo<MarkovProcess<3>
 /// Contact angles (K-8), time constant τ and noise density n_ξ. Blocks ξ_k, ξ_{k+1} (one angle
 /// per wheel: `memos` has one entry per wheel). One row per wheel, under the loss when there is
 /// one (SmootherOptions::contact_loss_scale), else Gaussian.
+/// With common_noise < noise (rover.yaml's common-mode density), one more Gaussian row on the
+/// wheels' mean (MarkovCommonMode): a single wheel may still jump under the loss, all of them
+/// together may not.
 inline void addContactProcess(ResidualCollector& out, std::vector<CostMemo<MarkovComponent>>& memos,
-                              double dt, double time_constant, double noise,
+                              double dt, double time_constant, double noise, double common_noise,
                               ceres::LossFunction* loss, const NodeHandles& k,
                               const NodeHandles& k1) {
   const double a = -1.0 / time_constant;
@@ -197,6 +259,11 @@ inline void addContactProcess(ResidualCollector& out, std::vector<CostMemo<Marko
   for (int i = 0; i < n; ++i)
     out.addShared("contact", memos[static_cast<size_t>(i)],
                   MarkovComponent(i, n, dt, a, noise * noise), loss, k.xi, k1.xi);
+  if (common_noise < noise && n > 1)
+    out.add("contact_common",
+            MarkovCommonMode::Create(
+                MarkovCommonMode(n, dt, a, noise * noise, common_noise * common_noise)),
+            nullptr, k.xi, k1.xi);
 }
 
 /// The wheels' common slip c (rover::SlipNoise::common_*): zero mean, steady-state σ per body
@@ -226,10 +293,15 @@ inline void addBiasWalk(ResidualCollector& out, double dt, double walk, const No
 /// Contact angles at a segment's first node k from K-8's stationary distribution,
 /// ξ ~ N(0, n_ξ² τ / 2). Block ξ_k.
 inline void addContactPrior(ResidualCollector& out, double time_constant, double noise,
-                            const NodeHandles& k) {
+                            double common_noise, const NodeHandles& k) {
   const double sigma = noise * std::sqrt(0.5 * time_constant);
   out.add("contact_prior", new StationaryPriorResidual(Eigen::VectorXd::Constant(k.xi.size, sigma)),
           nullptr, k.xi);
+  if (common_noise < noise && k.xi.size > 1)
+    out.add("contact_prior",
+            MarkovCommonMode::Create(MarkovCommonMode::stationary(
+                k.xi.size, -1.0 / time_constant, noise * noise, common_noise * common_noise)),
+            nullptr, k.xi);
 }
 
 /// The common slip's stationary distribution at a segment's first node: c ~ N(0, diag σ²).
