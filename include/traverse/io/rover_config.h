@@ -59,11 +59,12 @@ using SlipNoiseConfig = rover::SlipNoise;
 struct ProcessConfig {
   double contact_angle_time_constant_s = 2.0;        ///< A_ξ = −1/τ (K-8)
   double contact_angle_noise_rad_per_sqrt_s = 0.05;  ///< n_ξ density
-  /// n_c ≤ n_ξ: density of the wheels' common contact-angle mode (their mean), same τ. Absent:
-  /// n_ξ (every wheel independent). The common mode is the terrain's slope under the rover
-  /// relative to the body, which the body's own attitude takes up for a rover resting on its
-  /// wheels; left at n_ξ it trades freely against vertical velocity where nothing measures that
-  /// (docs/model.md "Common contact-angle mode"). Q_ξ = n_ξ² I + (n_c² − n_ξ²)/N · 1 1ᵀ.
+  /// n_c ≤ n_ξ: density of the contact angles' common mode, the normalised sum Σξ_i/√N (so the
+  /// wheels' mean ξ̄ has density n_c/√N), same τ. Absent: n_ξ (every wheel independent). The
+  /// common mode is the ground's slope under the rover relative to the body, which the body's
+  /// own attitude takes up for a rover resting on its wheels; left at n_ξ it trades freely
+  /// against vertical velocity where nothing measures that (docs/model.md "Common contact-angle
+  /// mode"). Q_ξ = n_ξ² I + (n_c² − n_ξ²)/N · 1 1ᵀ.
   std::optional<double> common_contact_angle_noise_rad_per_sqrt_s;
   double commonContactAngleNoise() const {
     return common_contact_angle_noise_rad_per_sqrt_s.value_or(contact_angle_noise_rad_per_sqrt_s);
