@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <iomanip>
 #include <iostream>
 #include <limits>
 #include <sstream>
@@ -301,6 +302,10 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
       << (s.common_slip_jumps > 0 ? "; common slip jumps " + std::to_string(s.common_slip_jumps)
                                   : std::string())
       << "\n";
+  if (e.odometry_scale_variance > 0.0)
+    out << "odometry: the wheels' rolling radius is known to " << std::setprecision(3)
+        << 100.0 * std::sqrt(e.odometry_scale_variance) << std::setprecision(6)
+        << " % (rover.yaml odometry.wheel_radius_scale_*sigma): carried in every position sigma\n";
   if (e.smoothed) {
     int converged = 0, fallback = 0;
     double solve = 0, cov = 0;

@@ -115,4 +115,13 @@ Trajectory readTrajectory(const std::filesystem::path& dir, const std::string& n
   return fromStream(io::readCsv(dir / (name + ".csv"), io::StreamSpec{}), name);
 }
 
+void addOdometryScaleCovariance(Trajectory* trajectory, double variance) {
+  if (variance <= 0.0 || !trajectory->has_covariance || trajectory->nodes.empty()) return;
+  const Vec3d x0 = trajectory->nodes.front().p_site;
+  for (TrajectoryNode& n : trajectory->nodes) {
+    const Vec3d d = n.p_site - x0;
+    n.covariance.topLeftCorner<3, 3>() += variance * d * d.transpose();
+  }
+}
+
 }  // namespace traverse::est

@@ -135,12 +135,17 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
     c.skid_steer = k;
   }
 
-  const YAML::Node od =
-      r.section(root, "odometry", {"wheel_radius_scale_left", "wheel_radius_scale_right"});
+  const YAML::Node od = r.section(root, "odometry",
+                                  {"wheel_radius_scale_left", "wheel_radius_scale_right",
+                                   "wheel_radius_scale_sigma", "wheel_radius_scale_side_sigma"});
   c.odometry.wheel_radius_scale_left = r.number(od, "odometry", "wheel_radius_scale_left",
                                                 c.odometry.wheel_radius_scale_left, 0.5, 2.0);
   c.odometry.wheel_radius_scale_right = r.number(od, "odometry", "wheel_radius_scale_right",
                                                  c.odometry.wheel_radius_scale_right, 0.5, 2.0);
+  c.odometry.wheel_radius_scale_sigma =
+      r.number(od, "odometry", "wheel_radius_scale_sigma", 0.0, 0.0, 0.5);
+  c.odometry.wheel_radius_scale_side_sigma =
+      r.number(od, "odometry", "wheel_radius_scale_side_sigma", 0.0, 0.0, 0.5);
 
   const YAML::Node p = r.section(
       root, "process",
@@ -372,7 +377,14 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
     out << YAML::Key << "odometry" << YAML::Value << YAML::BeginMap << YAML::Key
         << "wheel_radius_scale_left" << YAML::Value << num(c.odometry.wheel_radius_scale_left)
         << YAML::Key << "wheel_radius_scale_right" << YAML::Value
-        << num(c.odometry.wheel_radius_scale_right) << YAML::EndMap;
+        << num(c.odometry.wheel_radius_scale_right);
+    if (c.odometry.hasScaleUncertainty()) {
+      out << YAML::Key << "wheel_radius_scale_sigma" << YAML::Value
+          << num(c.odometry.wheel_radius_scale_sigma) << YAML::Key
+          << "wheel_radius_scale_side_sigma" << YAML::Value
+          << num(c.odometry.wheel_radius_scale_side_sigma);
+    }
+    out << YAML::EndMap;
   }
   const auto& p = c.process;
   out << YAML::Key << "process" << YAML::Value << YAML::BeginMap << YAML::Key

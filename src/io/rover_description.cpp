@@ -245,13 +245,15 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
       w.steered |= c >= 0 && geo.coords[static_cast<size_t>(c)].kind == rover::CoordKind::kSteering;
     }
   }
-  if (!config.odometry.isDefault()) {  // calibrated rolling radii (io::OdometryConfig)
+  {  // each wheel's side, and the calibrated rolling radii (io::OdometryConfig)
     const auto kin = rover::forwardKinematics<double>(geo, geo.zeroJoints());
     const double left = config.odometry.wheel_radius_scale_left;
     const double right = config.odometry.wheel_radius_scale_right;
     for (int w = 0; w < geo.numWheels(); ++w) {
       const double y = kin[w].T_body_wheel.p.y();
-      geo.wheels[w].radius *= y > 1e-6 ? left : y < -1e-6 ? right : 0.5 * (left + right);
+      const double share = y > 1e-6 ? 1.0 : y < -1e-6 ? 0.0 : 0.5;
+      geo.wheels[w].left_share = share;
+      if (left != 1.0 || right != 1.0) geo.wheels[w].radius *= share * left + (1 - share) * right;
     }
   }
   if (config.skid_steer) {

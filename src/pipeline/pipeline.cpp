@@ -127,6 +127,14 @@ ScreenedDeadReckoning screenedDeadReckoning(const io::TraverseLog& input,
   return out;
 }
 
+double odometryScaleVariance(const io::TraverseLog& log) {
+  const auto& wheels = log.geometry.wheels;
+  if (wheels.empty()) return 0.0;
+  double left = 0.0;
+  for (const rover::Wheel& w : wheels) left += w.left_share;
+  return log.config.odometry.meanScaleVariance(left / static_cast<double>(wheels.size()));
+}
+
 Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
                    const io::Diagnostics* diagnostics) {
   Estimates e;
@@ -158,6 +166,13 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
     e.seconds.smoother = seconds(t0);
     e.segments = smoother::smootherSegmentRows(e.segments, *e.smoothed);
   }
+  // What the wheels' unknown rolling radius leaves in every position (after the smoother, which
+  // seeds from the EKF's covariance where its marginals fail).
+  e.odometry_scale_variance = odometryScaleVariance(log);
+  est::addOdometryScaleCovariance(&e.ekf.trajectory, e.odometry_scale_variance);
+  if (e.ekf.rts) est::addOdometryScaleCovariance(&*e.ekf.rts, e.odometry_scale_variance);
+  if (e.smoothed)
+    est::addOdometryScaleCovariance(&e.smoothed->trajectory, e.odometry_scale_variance);
   return e;
 }
 

@@ -36,6 +36,14 @@ struct Trajectory {
   std::vector<TrajectoryNode> nodes;
 };
 
+/// Consider covariance of the wheels' common rolling-radius scale (io::OdometryConfig): a scale
+/// error δ that no estimator sees multiplies every displacement from the log's start by 1 + δ
+/// (speeds from the wheels, heading from the gyro and sun), so node k's position covariance
+/// gains `variance` (x_k − x_0)(x_k − x_0)ᵀ — the sensitivity ∂x_k/∂δ = x_k − x_0 times the
+/// scale's variance (Bierman's consider covariance: the estimate does not move). No-op at 0 or
+/// without covariance.
+void addOdometryScaleCovariance(Trajectory* trajectory, double variance);
+
 /// Output columns (outputs.md): t,x,y,z,qw,qx,qy,qz,vx,vy,vz,wx,wy,wz,xi1..xiN (N wheels, the
 /// size of the nodes' xi),bx,by,bz, then
 /// with covariance the 1σ columns sx,sy,sz,sroll,spitch,syaw (attitude σ: body-frame small

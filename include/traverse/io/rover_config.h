@@ -115,8 +115,28 @@ struct SkidSteerConfig {
 struct OdometryConfig {
   double wheel_radius_scale_left = 1.0;   ///< wheels at body y > 0 (zero joint angles)
   double wheel_radius_scale_right = 1.0;  ///< wheels at body y < 0
+  /// How far the effective rolling radius on the ground of this traverse may be from the radius
+  /// above (a fraction, 1σ): a random constant per log, common to both sides
+  /// (`wheel_radius_scale_sigma`: tyre load and wear, sinkage, the ground's give) plus each
+  /// side's own (`wheel_radius_scale_side_sigma`). Without an absolute reference of speed no
+  /// estimator can see it, so none estimates it: it is a consider parameter whose variance every
+  /// estimator's position covariance carries (est::addOdometryScaleCovariance). 0 (default):
+  /// the radii are exact.
+  double wheel_radius_scale_sigma = 0.0;
+  double wheel_radius_scale_side_sigma = 0.0;
+  bool hasScaleUncertainty() const {
+    return wheel_radius_scale_sigma > 0.0 || wheel_radius_scale_side_sigma > 0.0;
+  }
+  /// Variance of the scale of the rover's mean wheel speed when a fraction `left` of its wheels
+  /// is on the left: σ_c² + σ_s² (ℓ² + (1 − ℓ)²) (σ_c² + σ_s²/2 for a symmetric rover).
+  double meanScaleVariance(double left) const {
+    return wheel_radius_scale_sigma * wheel_radius_scale_sigma +
+           wheel_radius_scale_side_sigma * wheel_radius_scale_side_sigma *
+               (left * left + (1.0 - left) * (1.0 - left));
+  }
   bool isDefault() const {
-    return wheel_radius_scale_left == 1.0 && wheel_radius_scale_right == 1.0;
+    return wheel_radius_scale_left == 1.0 && wheel_radius_scale_right == 1.0 &&
+           !hasScaleUncertainty();
   }
 };
 

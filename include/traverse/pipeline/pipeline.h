@@ -67,6 +67,10 @@ struct Estimates {
   /// its stamps (−offset; 0 when none was).
   ClockOffset joints_clock;
   double joints_shift_s = 0.0;
+  /// Variance (fraction²) of the wheels' mean rolling-radius scale that rover.yaml declares
+  /// (io::OdometryConfig), carried in every estimator's position covariance
+  /// (est::addOdometryScaleCovariance); 0 when it declares none.
+  double odometry_scale_variance = 0.0;
   EstimatorSeconds seconds;
 };
 
@@ -103,6 +107,9 @@ struct ScreenedDeadReckoning {
 };
 ScreenedDeadReckoning screenedDeadReckoning(const io::TraverseLog& log,
                                             const PipelineConfig& config = {});
+/// Estimates::odometry_scale_variance of this log: io::OdometryConfig::meanScaleVariance at the
+/// rover's share of left wheels.
+double odometryScaleVariance(const io::TraverseLog& log);
 /// `diagnostics`: io::diagnose(log) when the caller has it already (it is computed otherwise).
 Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {},
                    const io::Diagnostics* diagnostics = nullptr);
