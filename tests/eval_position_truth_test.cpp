@@ -189,10 +189,15 @@ TEST(EvalPositionTruth, ConsistencyFigures) {
   }
   const Metrics m =
       evaluateAgainstFixes(tr, PositionTruth(gpsStream({0, 1, 2, 3}, p, sigma), Vec3d::Zero()));
+  // Consistency in the start-pinned gauge: the four fixes lie in one bin of the track (within
+  // start_span_m of its start), so all pin it — translation the weighted mean (z: 0), its
+  // variance 1/Σw = 1/400 in C — and e_z = −dz: C_zz = 0.04 + 0.01 + 0.0025 = 0.0525, d² =
+  // 0.25/0.0525 twice and 1/0.0525 twice (mean 2.5 / 0.21), two of four within 9; Σ tr C =
+  // 4 (0.0125 + 0.0125 + 0.0525).
   EXPECT_NEAR(metric(m, "gps_within_3sigma_pct"), 50.0, kTol);
-  EXPECT_NEAR(metric(m, "nees_position_mean"), 12.5, 1e-9);
+  EXPECT_NEAR(metric(m, "nees_position_mean"), 2.5 / 0.21, 1e-9);
   EXPECT_EQ(metric(m, "nees_dof"), 3.0);
-  EXPECT_NEAR(metric(m, "position_rmse_over_sigma"), std::sqrt(2.5 / 0.28), 1e-9);
+  EXPECT_NEAR(metric(m, "position_rmse_over_sigma"), std::sqrt(2.5 / 0.31), 1e-9);
   EXPECT_NEAR(metric(m, "ate_posyaw_m"), std::sqrt(2.5 / 4), 1e-9);
   EXPECT_NEAR(metric(m, "ate_posyaw_horizontal_m"), 0.0, 1e-9);
   EXPECT_NEAR(metric(m, "final_position_error_m"), 1.0, 1e-9);
@@ -204,6 +209,37 @@ TEST(EvalPositionTruth, ConsistencyFigures) {
   EXPECT_FALSE(dr.has("gps_within_3sigma_pct"));
   EXPECT_FALSE(dr.has("nees_position_mean"));
   EXPECT_TRUE(dr.has("ate_posyaw_m"));
+}
+
+// The gauge of the consistency figures: a straight 40 m drive whose odometry is 5 % long, with
+// the σ a consider scale of 5 % gives (σ_x = 0.05 x, zero at the start). Pinned at the start the
+// error is 0.05 x against that σ: every fix within 3σ, RMSE/σ just under 1. Against the
+// whole-track alignment the error would be −1 m at the start, where σ is 0 (that alignment is
+// the ATE's: 0.05 · 40/√12 = 0.58 m RMS).
+TEST(EvalPositionTruth, ConsistencyIsMeasuredInTheEstimatesStartPinnedGauge) {
+  est::Trajectory tr;
+  tr.name = "ekf";
+  tr.has_covariance = true;
+  std::vector<double> t;
+  std::vector<Vec3d> p, sigma;
+  for (int k = 0; k <= 400; ++k) {
+    const double x = 0.1 * k;
+    est::TrajectoryNode n;
+    n.t = 0.1 * k;
+    n.p_site = Vec3d(1.05 * x, 0, 0);
+    n.covariance = Mat6d::Identity() * 1e-8;
+    n.covariance(0, 0) += std::pow(0.05 * x, 2);
+    tr.nodes.push_back(n);
+    t.push_back(n.t);
+    p.emplace_back(x, 0, 0);
+    sigma.emplace_back(0.01, 0.01, 0.01);
+  }
+  const Metrics m = evaluateAgainstFixes(tr, PositionTruth(gpsStream(t, p, sigma), Vec3d::Zero()));
+  EXPECT_NEAR(metric(m, "ate_posyaw_m"), 0.05 * 40 / std::sqrt(12.0), 0.01);
+  EXPECT_EQ(metric(m, "gps_within_3sigma_pct"), 100.0);
+  EXPECT_GT(metric(m, "position_rmse_over_sigma"), 0.9);
+  EXPECT_LE(metric(m, "position_rmse_over_sigma"), 1.0);
+  EXPECT_LT(metric(m, "nees_position_mean"), 1.0);
 }
 
 // Drift: the truth drives straight along x at 1 m/s; the estimate is exact for its first 11 m,

@@ -511,6 +511,8 @@ OdometryCalibration calibrateOdometry(const io::TraverseLog& log, const est::Tra
       for (int b = 0; b < np; ++b)
         out.correlation(a, b) = C(a, b) / std::sqrt(std::max(1e-300, C(a, a) * C(b, b)));
     }
+    out.mean_scale_sigma = std::sqrt(
+        std::max(0.0, var(Eigen::RowVector4d(0.5 * (1 + theta[1]), 0.5 * theta[0], 0, 0))));
     out.heading_offset_rad = alpha;
     out.heading_offset_sigma_rad = std::sqrt(std::max(0.0, C(np, np)));
     return out;
@@ -552,6 +554,13 @@ std::string calibrationOverlay(const OdometryCalibration& c, const std::string& 
     std::snprintf(buf, sizeof buf, "  %s: %.6g  # sigma %.2g (was %.6g)\n",
                   p.key.substr(p.key.find('.') + 1).c_str(), p.value, p.sigma, p.nominal);
     os << buf;
+    if (p.key == "odometry.wheel_radius_scale_right") {  // what the fit leaves unknown
+      std::snprintf(buf, sizeof buf,
+                    "  wheel_radius_scale_sigma: %.2g  # the fitted mean scale's sigma\n"
+                    "  wheel_radius_scale_side_sigma: 0  # the sides' difference is fitted\n",
+                    c.mean_scale_sigma);
+      os << buf;
+    }
   }
   return os.str();
 }

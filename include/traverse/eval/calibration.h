@@ -82,6 +82,10 @@ struct OdometryCalibration {
   bool icr_centre_fitted = false;
   double turned_rad = 0.0;  ///< ∫|ω| dt over the yaw-rate samples
   double heading_offset_rad = 0.0, heading_offset_sigma_rad = 0.0;
+  /// 1σ of the fitted mean scale (s_L + s_R)/2: what the calibration leaves unknown of the
+  /// wheels' rolling radius (the overlay's odometry.wheel_radius_scale_sigma; its
+  /// wheel_radius_scale_side_sigma is 0: the sides' difference is fitted).
+  double mean_scale_sigma = 0.0;
   std::string truth_file;     ///< gps.csv or truth.csv
   ResidualGroup increments;   ///< horizontal, m (per axis)
   ResidualGroup yaw_rates;    ///< the sides' speed difference, m/s

@@ -6,10 +6,13 @@
 // its covariance linearly, attitude by slerp) and moved to the antenna: â_k = p̂(t_k) + R̂(t_k) L.
 // Heading in the site frame is not known from onboard sensors, so every comparison aligns the
 // estimate by yaw and translation (alignPosYawRobust: per-fix σ weights, Huber, outlier flags):
-//  - over the whole track: ate_posyaw_m (3-D), ate_posyaw_horizontal_m, and the consistency
-//    figures against C_k = Rz(ψ) (P̂_pp + R̂ [L]× P̂_θθ [L]×ᵀ R̂ᵀ) Rz(ψ)ᵀ + diag(σ_k²) (the
-//    position and body-frame attitude blocks of the estimate's covariance, as the trajectory
-//    files carry them; trajectories with covariance only):
+//  - over the whole track: ate_posyaw_m (3-D), ate_posyaw_horizontal_m;
+//  - pinned at the start (the estimate's own gauge: its covariance is relative to its given
+//    start pose): translation from the fixes of the first start_span_m of track (weighted mean;
+//    its variance σ_pin² = 1/Σw joins C), yaw about that point over every fix. The consistency
+//    figures compare that error e_k with C_k = Rz(ψ) (P̂_pp + R̂ [L]× P̂_θθ [L]×ᵀ R̂ᵀ) Rz(ψ)ᵀ +
+//    diag(σ_k² + σ_pin²) (the position and body-frame attitude blocks of the estimate's
+//    covariance, as the trajectory files carry them; trajectories with covariance only):
 //    nees_position_mean (mean eᵀC⁻¹e, nees_dof = 3), position_rmse_over_sigma
 //    (√(Σ‖e‖² / Σ tr C)), gps_within_3sigma_pct (% of fixes with eᵀC⁻¹e ≤ 9);
 //  - on the fixes of the first first_span_m of track only, as the estimator itself starts from
@@ -64,6 +67,7 @@ struct PositionTruthOptions {
   double huber_k = 3.0;            ///< Huber threshold of the alignment, scaled σ
   double outlier_threshold = 5.0;  ///< a fix beyond this many scaled σ is rejected
   double first_span_m = 10.0;      ///< track distance of the "first span" alignment
+  double start_span_m = 0.5;       ///< track distance whose fixes pin the consistency gauge
   int max_iterations = 50;
 };
 
