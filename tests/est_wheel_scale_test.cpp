@@ -98,6 +98,39 @@ TEST(OdometryScale, ConsiderCovarianceByHand) {
   EXPECT_EQ(no_cov.nodes[1].covariance, tr.nodes[1].covariance);
 }
 
+// A constant IMU-to-wheels misalignment, by hand: a level drive along x at 0.5 m/s for 10 s
+// (nodes every 0.1 s) gains pitch σ × 5 m of height σ and yaw σ × 5 m of cross-track σ, nothing
+// along the track; then a turn to +y for 4 s more: the cross-track of the first leg (y) and of
+// the second (x) are one yaw error's, and the height's is over the whole 7 m.
+TEST(OdometryScale, MountingConsiderCovarianceByHand) {
+  est::Trajectory tr;
+  tr.has_covariance = true;
+  for (int k = 0; k <= 140; ++k) {
+    est::TrajectoryNode n;
+    n.t = 0.1 * k;
+    n.v_body = Vec3d(0.5, 0, 0);
+    n.q_site_body =
+        k < 100 ? Quatd::Identity() : Quatd(Eigen::AngleAxisd(std::acos(-1.0) / 2, Vec3d::UnitZ()));
+    tr.nodes.push_back(n);
+  }
+  est::addMountingCovariance(&tr, 0.01);
+  const Mat3d P10 = tr.nodes[100].covariance.topLeftCorner<3, 3>();
+  EXPECT_NEAR(P10(0, 0), 0.0, 1e-15);
+  EXPECT_NEAR(P10(1, 1), std::pow(0.01 * 5.0, 2), 1e-12);
+  EXPECT_NEAR(P10(2, 2), std::pow(0.01 * 5.0, 2), 1e-12);
+  const Mat3d P14 = tr.nodes[140].covariance.topLeftCorner<3, 3>();
+  // Yaw δ moves the first leg's end by 5δ along y and the second leg's by −2δ along x.
+  EXPECT_NEAR(P14(0, 0), std::pow(0.01 * 2.0, 2), 1e-12);
+  EXPECT_NEAR(P14(1, 1), std::pow(0.01 * 5.0, 2), 1e-12);
+  EXPECT_NEAR(P14(0, 1), -0.01 * 0.01 * 2.0 * 5.0, 1e-12);
+  // Height: pitch δ (about body y) lowers the nose on either leg, δ e_y × v = −0.5 δ e_z, over
+  // the whole 7 m; roll does nothing to a velocity along body x.
+  EXPECT_NEAR(P14(2, 2), std::pow(0.01 * 7.0, 2), 1e-12);
+  est::addMountingCovariance(&tr, 0.0);  // no-op
+  const Mat3d P14_again = tr.nodes[140].covariance.topLeftCorner<3, 3>();
+  EXPECT_EQ(P14_again, P14);
+}
+
 TEST(OdometryScale, SimulatedRadiusErrorIsCoveredByEveryEstimatorsSigma) {
   const sim::Scenario sc = sim::loadScenario("planar-18m", kDatasets, {"rover=pathfinder"});
   const sim::Simulation sim = sim::simulate(sc, sim::roverDirectory(sc, kDatasets), 3);

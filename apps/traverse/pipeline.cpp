@@ -306,6 +306,10 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     out << "odometry: the wheels' rolling radius is known to " << std::setprecision(3)
         << 100.0 * std::sqrt(e.odometry_scale_variance) << std::setprecision(6)
         << " % (rover.yaml odometry.wheel_radius_scale_*sigma): carried in every position sigma\n";
+  if (const double m = log.config.odometry.imu_mounting_sigma_rad; m > 0.0)
+    out << "odometry: the IMU's mounting against the wheels is known to " << std::setprecision(3)
+        << m * 180.0 / 3.14159265358979323846 << std::setprecision(6)
+        << " deg (rover.yaml odometry.imu_mounting_sigma_rad): carried in every position sigma\n";
   if (e.smoothed) {
     int converged = 0, fallback = 0;
     double solve = 0, cov = 0;

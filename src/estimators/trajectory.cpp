@@ -1,7 +1,10 @@
 #include "traverse/estimators/trajectory.h"
 
+#include "traverse/core/so3.h"
+
 #include <charconv>
 
+#include "traverse/core/so3.h"
 #include "traverse/io/atomic_file.h"
 #include "traverse/io/csv.h"
 #include "traverse/io/log_writer.h"
@@ -121,6 +124,20 @@ void addOdometryScaleCovariance(Trajectory* trajectory, double variance) {
   for (TrajectoryNode& n : trajectory->nodes) {
     const Vec3d d = n.p_site - x0;
     n.covariance.topLeftCorner<3, 3>() += variance * d * d.transpose();
+  }
+}
+
+void addMountingCovariance(Trajectory* trajectory, double sigma_rad) {
+  if (sigma_rad <= 0.0 || !trajectory->has_covariance || trajectory->nodes.empty()) return;
+  Mat3d J = Mat3d::Zero();
+  const double var = sigma_rad * sigma_rad;
+  for (size_t k = 0; k < trajectory->nodes.size(); ++k) {
+    TrajectoryNode& n = trajectory->nodes[k];
+    if (k > 0) {
+      const TrajectoryNode& prev = trajectory->nodes[k - 1];
+      J -= prev.q_site_body.toRotationMatrix() * so3::skew(prev.v_body) * (n.t - prev.t);
+    }
+    n.covariance.topLeftCorner<3, 3>() += var * J * J.transpose();
   }
 }
 

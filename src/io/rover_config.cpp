@@ -135,9 +135,10 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
     c.skid_steer = k;
   }
 
-  const YAML::Node od = r.section(root, "odometry",
-                                  {"wheel_radius_scale_left", "wheel_radius_scale_right",
-                                   "wheel_radius_scale_sigma", "wheel_radius_scale_side_sigma"});
+  const YAML::Node od =
+      r.section(root, "odometry",
+                {"wheel_radius_scale_left", "wheel_radius_scale_right", "wheel_radius_scale_sigma",
+                 "wheel_radius_scale_side_sigma", "imu_mounting_sigma_rad"});
   c.odometry.wheel_radius_scale_left = r.number(od, "odometry", "wheel_radius_scale_left",
                                                 c.odometry.wheel_radius_scale_left, 0.5, 2.0);
   c.odometry.wheel_radius_scale_right = r.number(od, "odometry", "wheel_radius_scale_right",
@@ -146,6 +147,8 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
       r.number(od, "odometry", "wheel_radius_scale_sigma", 0.0, 0.0, 0.5);
   c.odometry.wheel_radius_scale_side_sigma =
       r.number(od, "odometry", "wheel_radius_scale_side_sigma", 0.0, 0.0, 0.5);
+  c.odometry.imu_mounting_sigma_rad =
+      r.number(od, "odometry", "imu_mounting_sigma_rad", 0.0, 0.0, 0.2);
 
   const YAML::Node p = r.section(
       root, "process",
@@ -384,6 +387,9 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
           << "wheel_radius_scale_side_sigma" << YAML::Value
           << num(c.odometry.wheel_radius_scale_side_sigma);
     }
+    if (c.odometry.imu_mounting_sigma_rad > 0.0)
+      out << YAML::Key << "imu_mounting_sigma_rad" << YAML::Value
+          << num(c.odometry.imu_mounting_sigma_rad);
     out << YAML::EndMap;
   }
   const auto& p = c.process;

@@ -173,6 +173,11 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
   if (e.ekf.rts) est::addOdometryScaleCovariance(&*e.ekf.rts, e.odometry_scale_variance);
   if (e.smoothed)
     est::addOdometryScaleCovariance(&e.smoothed->trajectory, e.odometry_scale_variance);
+  // ... and the IMU's unknown mounting against the wheels (the same kind of consider term).
+  const double mount = log.config.odometry.imu_mounting_sigma_rad;
+  est::addMountingCovariance(&e.ekf.trajectory, mount);
+  if (e.ekf.rts) est::addMountingCovariance(&*e.ekf.rts, mount);
+  if (e.smoothed) est::addMountingCovariance(&e.smoothed->trajectory, mount);
   return e;
 }
 

@@ -44,6 +44,15 @@ struct Trajectory {
 /// without covariance.
 void addOdometryScaleCovariance(Trajectory* trajectory, double variance);
 
+/// Consider covariance of a constant misalignment δ (body small angle, σ `sigma_rad` per axis)
+/// between the frame that gives the attitude (the IMU) and the wheels' rolling direction
+/// (io::OdometryConfig::imu_mounting_sigma_rad): the velocity the wheels give is turned by δ,
+/// δv = δ × v, before R carries it to the site, so x_k moves by J_k δ with
+/// J_k = −Σ_{j<k} R_j [v_j]× Δt_j (left sums over the nodes' attitude and body velocity; a
+/// forward drive gains pitch σ × distance of height and yaw σ × distance of cross-track σ);
+/// node k's position covariance gains σ² J_k J_kᵀ. No-op at 0 or without covariance.
+void addMountingCovariance(Trajectory* trajectory, double sigma_rad);
+
 /// Output columns (outputs.md): t,x,y,z,qw,qx,qy,qz,vx,vy,vz,wx,wy,wz,xi1..xiN (N wheels, the
 /// size of the nodes' xi),bx,by,bz, then
 /// with covariance the 1σ columns sx,sy,sz,sroll,spitch,syaw (attitude σ: body-frame small

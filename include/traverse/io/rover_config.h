@@ -124,6 +124,11 @@ struct OdometryConfig {
   /// the radii are exact.
   double wheel_radius_scale_sigma = 0.0;
   double wheel_radius_scale_side_sigma = 0.0;
+  /// How well the IMU's axes are known against the wheels' rolling direction (rad, 1σ per body
+  /// axis): a constant misalignment δ turns every velocity the wheels give by δ before the
+  /// IMU's attitude carries it into the site frame (a pitch offset makes height from distance).
+  /// A consider parameter like the scale (est::addMountingCovariance); 0 (default): exact.
+  double imu_mounting_sigma_rad = 0.0;
   bool hasScaleUncertainty() const {
     return wheel_radius_scale_sigma > 0.0 || wheel_radius_scale_side_sigma > 0.0;
   }
@@ -136,7 +141,7 @@ struct OdometryConfig {
   }
   bool isDefault() const {
     return wheel_radius_scale_left == 1.0 && wheel_radius_scale_right == 1.0 &&
-           !hasScaleUncertainty();
+           !hasScaleUncertainty() && imu_mounting_sigma_rad == 0.0;
   }
 };
 
