@@ -1,7 +1,5 @@
 #include "traverse/estimators/trajectory.h"
 
-#include "traverse/core/so3.h"
-
 #include <charconv>
 
 #include "traverse/core/so3.h"
