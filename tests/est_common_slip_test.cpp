@@ -46,9 +46,7 @@ EkfState boxplus(const EkfState& x, const EkfVector& dx) {
 }
 
 EkfMatrix randomCovariance(std::mt19937& rng) {
-  EkfMatrix L(kN, kN);
-  for (int j = 0; j < kN; ++j) L.col(j) = randomVector<kN>(rng);
-  return 1e-3 * (L * L.transpose() + EkfMatrix::Identity(kN, kN));
+  return testing::randomSmallCovariance(rng, kN);
 }
 
 TEST(EstCommonSlip, StateExistsOnlyWhenDeclared) {

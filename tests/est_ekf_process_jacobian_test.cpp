@@ -37,17 +37,19 @@ io::RoverConfig rocky7Config() {
   return c;
 }
 
-/// One of the 16 process-model variants.
+/// One of the 32 process-model variants.
 struct Variant {
-  bool accel;       ///< O-4 (accelerometer drives the velocity) or K-1 (perturbation)
-  bool k12;         ///< K-2 + K-12 (gyro a measurement) or the hybrid O-1 (gyro-driven)
-  bool three_axis;  ///< 3-axis or heading-only gyro
-  bool has_cmd;     ///< the log has cmd.csv
+  bool accel;               ///< O-4 (accelerometer drives the velocity) or K-1 (perturbation)
+  bool k12;                 ///< K-2 + K-12 (gyro a measurement) or the hybrid O-1 (gyro-driven)
+  bool three_axis;          ///< 3-axis or heading-only gyro
+  bool has_cmd;             ///< the log has cmd.csv
+  bool accel_bias = false;  ///< the accelerometer's bias b_a as three more states
 };
 
 std::string describe(const Variant& v) {
   return std::string(v.accel ? "accel-driven" : "perturbation") + (v.k12 ? " K-12" : " O-1") +
-         (v.three_axis ? " 3-axis" : " heading") + (v.has_cmd ? " cmd" : " no-cmd");
+         (v.three_axis ? " 3-axis" : " heading") + (v.has_cmd ? " cmd" : " no-cmd") +
+         (v.accel_bias ? " b_a" : "");
 }
 
 std::vector<Variant> allVariants() {
@@ -55,7 +57,8 @@ std::vector<Variant> allVariants() {
   for (const bool accel : {false, true})
     for (const bool k12 : {false, true})
       for (const bool three : {false, true})
-        for (const bool cmd : {false, true}) out.push_back({accel, k12, three, cmd});
+        for (const bool cmd : {false, true})
+          for (const bool ba : {false, true}) out.push_back({accel, k12, three, cmd, ba});
   return out;
 }
 
@@ -68,8 +71,8 @@ EkfOptions optionsFor(const Variant& v) {
   return o;
 }
 
-EkfState randomState(std::mt19937& rng) {
-  return testing::randomEkfState(rng, r7::kNumWheels);
+EkfState randomState(std::mt19937& rng, bool accel_bias = false) {
+  return testing::randomEkfState(rng, r7::kNumWheels, false, accel_bias);
 }
 
 EkfInputs randomInputs(std::mt19937& rng, const Variant& v, const EkfState& x, double g) {
@@ -104,9 +107,10 @@ Dynamics dynamics(const Ekf& ekf, const Variant& v, const io::RoverConfig& c, co
   const Vec3d vel = v.accel ? x.v_p : ekf.velocity<double>(x.v_p, in);
   d.p_dot = x.q_site_body * vel;
   d.w_p_dot = a_w.cwiseProduct(x.w_p);
-  d.v_p_dot = v.accel ? sensors::velocityRateFromAccel<double>(in.accel, x.q_site_body, x.v_p, d.w,
-                                                               Vec3d::Zero(), c.accel.lever_arm_m,
-                                                               c.gravity_mps2)
+  // The accelerometer reads K-10 plus its bias: the velocity sees a_m − b_a.
+  d.v_p_dot = v.accel ? sensors::velocityRateFromAccel<double>(
+                            Vec3d(in.accel - x.accel_bias), x.q_site_body, x.v_p, d.w,
+                            Vec3d::Zero(), c.accel.lever_arm_m, c.gravity_mps2)
                       : Vec3d(a_v * x.v_p);
   d.xi_dot = a_xi * x.xi;
   d.b_dot.setZero();
@@ -132,7 +136,7 @@ EkfVector errorRate(const Ekf& ekf, const Variant& v, const io::RoverConfig& c,
   const auto dtheta = [&](double t) {
     return so3::log(Quatd(so3::expQuat(Vec3d(-t * f_hat.w)) * e0 * so3::expQuat(Vec3d(t * f.w))));
   };
-  EkfVector r(kN);
+  EkfVector r = EkfVector::Zero(ekf.numStates());  // b_a (a constant here): zero rate
   r.segment<3>(I::kTheta) = (dtheta(h) - dtheta(-h)) / (2.0 * h);
   r.segment<3>(I::kRate) = f.w_p_dot - f_hat.w_p_dot;
   r.segment<3>(I::kPos) = f.p_dot - f_hat.p_dot;
@@ -146,9 +150,10 @@ EkfVector errorRate(const Ekf& ekf, const Variant& v, const io::RoverConfig& c,
 EkfMatrix numericProcessJacobian(const Ekf& ekf, const Variant& v, const io::RoverConfig& c,
                                  const EkfState& x_hat, const EkfInputs& in) {
   const double eps = 1e-5;
-  EkfMatrix F(kN, kN);
-  for (int j = 0; j < kN; ++j) {
-    const EkfVector e = EkfVector::Unit(kN, j) * eps;
+  const int n = ekf.numStates();
+  EkfMatrix F(n, n);
+  for (int j = 0; j < n; ++j) {
+    const EkfVector e = EkfVector::Unit(n, j) * eps;
     F.col(j) =
         (errorRate(ekf, v, c, x_hat, e, in) - errorRate(ekf, v, c, x_hat, -e, in)) / (2.0 * eps);
   }
@@ -157,11 +162,18 @@ EkfMatrix numericProcessJacobian(const Ekf& ekf, const Variant& v, const io::Rov
 
 struct Fixture {
   io::RoverConfig config = rocky7Config();
+  /// The same with an accelerometer bias declared (the Ekf keeps a reference: it lives here).
+  io::RoverConfig config_with_bias = [] {
+    io::RoverConfig c = rocky7Config();
+    c.accel.bias_sigma_mps2 = 0.05, c.accel.bias_random_walk_mps2_per_sqrt_s = 1e-3;
+    return c;
+  }();
   InitialState init;
 };
 
 Ekf makeEkf(const Fixture& fx, const Variant& v) {
-  return Ekf(fx.config, testing::rocky7(), optionsFor(v), fx.init, v.three_axis, v.has_cmd);
+  return Ekf(v.accel_bias ? fx.config_with_bias : fx.config, testing::rocky7(), optionsFor(v),
+             fx.init, v.three_axis, v.has_cmd);
 }
 
 /// max |a − b| relative to max |b|.
@@ -169,9 +181,10 @@ double relativeError(const auto& a, const auto& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
 }
 
-// F at 24 random states for each of the 16 variants (velocity K-1 / O-4 × attitude O-1 / K-12
-// × heading / 3-axis gyro × with / without cmd) against central differences of the error
-// dynamics. Also the nominal v̇_p that processJacobian returns for O-4.
+// F at 24 random states for each of the 32 variants (velocity K-1 / O-4 × attitude O-1 / K-12
+// × heading / 3-axis gyro × with / without cmd × with / without the accelerometer bias b_a)
+// against central differences of the error dynamics. Also the nominal v̇_p that
+// processJacobian returns for O-4.
 TEST(EstEkfProcessJacobian, MatchesNumericErrorDynamicsForEveryVariant) {
   const Fixture fx;
   std::mt19937 rng(41);
@@ -179,9 +192,10 @@ TEST(EstEkfProcessJacobian, MatchesNumericErrorDynamicsForEveryVariant) {
   for (const Variant& v : allVariants()) {
     Ekf ekf = makeEkf(fx, v);
     for (int trial = 0; trial < 24; ++trial) {
-      const EkfState x = randomState(rng);
+      const EkfState x = randomState(rng, v.accel_bias);
       const EkfInputs in = randomInputs(rng, v, x, fx.config.gravity_mps2);
       ekf.setState(x);
+      ASSERT_EQ(ekf.numStates(), ekfStates(r7::kNumWheels, 0, v.accel_bias ? 3 : 0));
       Vec3d v_dot;
       const EkfMatrix F = ekf.processJacobian(in, &v_dot);
       const EkfMatrix Fn = numericProcessJacobian(ekf, v, fx.config, x, in);
@@ -258,13 +272,16 @@ TEST(EstEkfProcessJacobian, HandCheckedBlocks) {
   EXPECT_TRUE(rest.isZero(0.0));
 }
 
-EkfMatrix randomCovariance(std::mt19937& rng) {
+EkfMatrix randomCovariance(std::mt19937& rng, int n = kN) {
   // A P of mixed scales (attitude ~1e-2 rad, position ~1 m, …) with correlations.
-  EkfMatrix L(kN, kN);
-  for (int j = 0; j < kN; ++j) L.col(j) = randomVector<kN>(rng);
-  const EkfVector scale = (randomVector<kN>(rng, 1.0).array() * 2.0).exp().matrix();
-  return scale.asDiagonal() * (L * L.transpose() + EkfMatrix::Identity(kN, kN)) *
-         scale.asDiagonal();
+  // (Entries uniform in [−1, 1] column by column, then the scales: randomVector's draws.)
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  EkfMatrix L(n, n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) L(i, j) = u(rng);
+  EkfVector scale(n);
+  for (int i = 0; i < n; ++i) scale[i] = std::exp(2.0 * u(rng));
+  return scale.asDiagonal() * (L * L.transpose() + EkfMatrix::Identity(n, n)) * scale.asDiagonal();
 }
 
 // Φ P Φᵀ over F's nonzeros equals the dense (I + F dt + ½(F dt)²) P (…)ᵀ, and propagate adds
@@ -275,14 +292,15 @@ TEST(EstEkfProcessJacobian, SparseCovariancePropagationMatchesDense) {
   for (const Variant& v : allVariants()) {
     Ekf ekf = makeEkf(fx, v);
     for (int trial = 0; trial < 4; ++trial) {
-      const EkfState x = randomState(rng);
+      const EkfState x = randomState(rng, v.accel_bias);
       const EkfInputs in = randomInputs(rng, v, x, fx.config.gravity_mps2);
       ekf.setState(x);
       const EkfMatrix F = ekf.processJacobian(in);
-      const EkfMatrix P = randomCovariance(rng);
+      const int n = ekf.numStates();
+      const EkfMatrix P = randomCovariance(rng, n);
       for (const double dt : {0.001, 0.02, 0.25}) {
         const EkfMatrix Fdt = F * dt;
-        const EkfMatrix Phi = EkfMatrix::Identity(kN, kN) + Fdt + 0.5 * Fdt * Fdt;
+        const EkfMatrix Phi = EkfMatrix::Identity(n, n) + Fdt + 0.5 * Fdt * Fdt;
         const EkfMatrix dense = Phi * P * Phi.transpose();
         const EkfMatrix sparse = detail::propagateCovariance(F, dt, P);
         EXPECT_LE(relativeError(sparse, dense), 1e-12) << describe(v) << " dt " << dt;

@@ -514,6 +514,69 @@ TEST(SmootherResidualAccelVelocityProcess, HandChecked) {
   }
 }
 
+// With the accelerometer's bias b_a as a seventh block (v̇ sees a_m − b_a): the two-stage cost
+// function against central differences and against one full AutoDiffCostFunction, at random
+// states (random unit quaternions, random b_a).
+TEST(SmootherResidualAccelVelocityProcess, WithBiasJacobiansMatchNumericAndFullAutodiff) {
+  std::mt19937 rng(31);
+  for (int trial = 0; trial < kTrials; ++trial) {
+    SCOPED_TRACE(trial);
+    const double dt = uniform(rng, 0.05, 0.2), si = uniform(rng, 10.0, 1000.0);
+    const Quatd q0 = randomAttitude(rng);
+    const Vec3d accel = q0.conjugate() * Vec3d(0, 0, kGravity) + Vec3d(randomVector<3>(rng, 0.2));
+    const Vec3d lever(0.02, -0.01, 0.05);
+    const std::unique_ptr<ceres::CostFunction> two(
+        AccelVelocityProcessResidual::Create(dt, accel, lever, kGravity, si, true));
+    const std::unique_ptr<ceres::CostFunction> full(
+        AccelVelocityProcessResidual::CreateFullAutodiff(dt, accel, lever, kGravity, si, true));
+    ASSERT_EQ(two->parameter_block_sizes().size(), 7u);
+    const Params params = {block(q0),
+                           block(nextAttitude(rng, q0)),
+                           block(randomVector<3>(rng, 0.1)),
+                           block(randomVector<3>(rng, 0.1)),
+                           block(randomVector<3>(rng, 0.1)),
+                           block(randomVector<3>(rng, 0.1)),
+                           block(randomVector<3>(rng, 0.3))};
+    checkCostFunctionJacobians(*two, params, {true, true, false, false, false, false, false});
+    expectSameCostFunction(*two, *full, params);
+  }
+}
+
+// The bias only moves the reading: a reading a with bias b gives the residual of the reading
+// a − b without one (any state), and ∂r/∂b_a = −sqrt_info Δt (−I of v̇). Level at rest with
+// reading (0.05, 0, g) and b_a = (0.05, 0, 0): v̇ = 0, r = 0.
+TEST(SmootherResidualAccelVelocityProcess, WithBiasHandChecked) {
+  std::mt19937 rng(32);
+  const double dt = 0.1, si = 200.0;
+  const Vec3d lever(0.02, -0.01, 0.05), b(0.03, -0.02, 0.04);
+  const Quatd q0 = randomAttitude(rng);
+  const Vec3d accel = q0.conjugate() * Vec3d(0, 0, kGravity) + Vec3d(randomVector<3>(rng, 0.2));
+  const Params state = {block(q0),
+                        block(nextAttitude(rng, q0)),
+                        block(randomVector<3>(rng, 0.1)),
+                        block(randomVector<3>(rng, 0.1)),
+                        block(randomVector<3>(rng, 0.1)),
+                        block(randomVector<3>(rng, 0.1))};
+  Params with_b = state;
+  with_b.push_back(block(b));
+  const std::unique_ptr<ceres::CostFunction> biased(
+      AccelVelocityProcessResidual::Create(dt, accel, lever, kGravity, si, true));
+  const std::unique_ptr<ceres::CostFunction> plain(
+      AccelVelocityProcessResidual::Create(dt, Vec3d(accel - b), lever, kGravity, si));
+  EXPECT_LT((evaluate(*biased, with_b) - evaluate(*plain, state)).norm(), 1e-9);
+  const std::vector<RowMajorXd> J =
+      reportedJacobians(*biased, with_b, {true, true, false, false, false, false, false});
+  EXPECT_LT((J[6] - RowMajorXd(Mat3d::Identity() * si * dt)).cwiseAbs().maxCoeff(), 1e-9);
+
+  const std::unique_ptr<ceres::CostFunction> rest(AccelVelocityProcessResidual::Create(
+      dt, Vec3d(0.05, 0, kGravity), lever, kGravity, si, true));
+  const auto level = block(Quatd::Identity());
+  const std::vector<double> zero = {0, 0, 0};
+  EXPECT_LT(evaluate(*rest, {level, level, zero, zero, zero, zero, {0.05, 0, 0}}).norm(), 1e-12);
+  EXPECT_NEAR(evaluate(*rest, {level, level, zero, zero, zero, zero, zero})[0], -0.05 * dt * si,
+              1e-12);
+}
+
 // ------------------------------------------------------------------------------------------
 // Gyro increment
 // ------------------------------------------------------------------------------------------
@@ -713,6 +776,47 @@ TEST(SmootherResidualGravity, JacobiansMatchNumeric) {
     const std::unique_ptr<ceres::CostFunction> cf(
         GravityResidual::Create(m.roll_pitch, sqrtInformation<2>(m.covariance, "gravity")));
     checkCostFunctionJacobians(*cf, {block(q)}, {true});
+  }
+}
+
+// With the accelerometer's bias: blocks q and b_a, at random attitudes and biases.
+TEST(SmootherResidualGravity, WithBiasJacobiansMatchNumeric) {
+  std::mt19937 rng(17);
+  for (int trial = 0; trial < kTrials;) {
+    const Quatd q = randomAttitude(rng);
+    const Vec3d b = randomVector<3>(rng, 0.2);
+    const Vec3d f = q.conjugate() * Vec3d(0, 0, kGravity) + b + Vec3d(randomVector<3>(rng, 0.01));
+    const sensors::RollPitchMeasurement m =
+        sensors::rollPitchAtRest(f, Mat3d::Identity() * (0.01 * 0.01 / 200));
+    if (std::abs(m.roll_pitch[1]) > 1.4) continue;  // roll is ill-defined near pitch ±90°
+    SCOPED_TRACE(trial++);
+    const std::unique_ptr<ceres::CostFunction> cf(GravityBiasResidual::Create(
+        m.roll_pitch, sqrtInformation<2>(m.covariance, "gravity"), kGravity));
+    checkCostFunctionJacobians(*cf, {block(q), block(b)}, {true, false});
+  }
+}
+
+// Level with b_a = (0, 0.0981, 0) and g = 9.81: the mean specific force is (0, 0.0981, 9.81),
+// roll = atan2(0.0981, 9.81) = atan(0.01), pitch 0; with b_a = (−0.0981, 0, 0), pitch = atan(0.01)
+// (pitch = atan2(−f_x, √(f_y² + f_z²))); b_a along z changes neither. At b_a = 0 it is the
+// bias-free residual at any attitude.
+TEST(SmootherResidualGravity, WithBiasHandChecked) {
+  const Eigen::Matrix2d sqrt_info = Eigen::Matrix2d::Identity() * 100.0;
+  const auto r = [&](const Vec2d& rp, const Quatd& q, const Vec3d& b) {
+    const std::unique_ptr<ceres::CostFunction> cf(GravityBiasResidual::Create(rp, sqrt_info, 9.81));
+    return Vec2d(evaluate(*cf, {block(q), block(b)}));
+  };
+  const double t = std::atan(0.01);
+  EXPECT_LT(r(Vec2d(t, 0), Quatd::Identity(), Vec3d(0, 0.0981, 0)).norm(), 1e-12);
+  EXPECT_LT(r(Vec2d(0, t), Quatd::Identity(), Vec3d(-0.0981, 0, 0)).norm(), 1e-12);
+  EXPECT_LT(r(Vec2d(0, 0), Quatd::Identity(), Vec3d(0, 0, 0.5)).norm(), 1e-12);
+  EXPECT_NEAR(r(Vec2d(0, 0), Quatd::Identity(), Vec3d(0, 0.0981, 0))[0], -100.0 * t, 1e-12);
+  std::mt19937 rng(18);
+  for (int trial = 0; trial < 5; ++trial) {
+    const Quatd q = randomAttitude(rng);
+    const Vec2d rp = randomVector<2>(rng, 0.5);
+    const std::unique_ptr<ceres::CostFunction> plain(GravityResidual::Create(rp, sqrt_info));
+    EXPECT_LT((r(rp, q, Vec3d::Zero()) - Vec2d(evaluate(*plain, {block(q)}))).norm(), 1e-12);
   }
 }
 
@@ -1023,6 +1127,7 @@ TEST(SmootherResidualCollector, EqualFunctorsShareACostFunctionAndTheCostIsCeres
             {n.w, 3, {node, C::kRate, 3}, nullptr},
             {n.xi, 6, {node, C::kContact, 6}, nullptr},
             {n.b, 3, {node, C::bias(6), 3}, nullptr},
+            {},
             {}};
   }
   ceres::CauchyLoss loss(1.0);

@@ -302,6 +302,15 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
       << (s.common_slip_jumps > 0 ? "; common slip jumps " + std::to_string(s.common_slip_jumps)
                                   : std::string())
       << "\n";
+  if (log.config.accel.hasBias() && !e.ekf.trajectory.nodes.empty()) {
+    // b_a as the EKF ends (m/s², body axes) against its prior σ: what the data told it.
+    const est::TrajectoryNode& n = e.ekf.trajectory.nodes.back();
+    out << std::setprecision(3) << "ekf: accelerometer bias at the end (" << n.accel_bias.x()
+        << ", " << n.accel_bias.y() << ", " << n.accel_bias.z() << ") +- ("
+        << n.accel_bias_sigma.x() << ", " << n.accel_bias_sigma.y() << ", "
+        << n.accel_bias_sigma.z() << ") m/s^2 (prior sigma " << log.config.accel.bias_sigma_mps2
+        << ")" << std::setprecision(6) << "\n";
+  }
   if (e.odometry_scale_variance > 0.0)
     out << "odometry: the wheels' rolling radius is known to " << std::setprecision(3)
         << 100.0 * std::sqrt(e.odometry_scale_variance) << std::setprecision(6)

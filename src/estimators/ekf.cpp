@@ -64,6 +64,23 @@ void jacobian(const F& f, const Eigen::Matrix<double, N, 1>& x, Eigen::Matrix<do
   }
 }
 
+/// The at-rest gravity model h(q ⊞ δθ, b_a + δb_a) (roll and pitch of R(q)ᵀ (0, 0, g) + b_a) at
+/// δ = 0, and its Jacobian in (δθ, δb_a) by Jets.
+Eigen::Matrix<double, 2, 6> gravityJacobian(const Quatd& q, const Vec3d& b_a, double g, Vec2d* h) {
+  Eigen::Matrix<double, 2, 6> J;
+  Eigen::Matrix<double, 6, 1> z = Eigen::Matrix<double, 6, 1>::Zero();
+  z.tail<3>() = b_a;
+  jacobian<2, 6>(
+      [&](const auto& d) {
+        using T = typename std::decay_t<decltype(d)>::Scalar;
+        return sensors::gravityRollPitchPredict<T>(
+            so3::boxplus(Quat<T>(q.cast<T>()), Vec3<T>(d.template head<3>())),
+            Vec3<T>(d.template tail<3>()), g);
+      },
+      z, h, &J);
+  return J;
+}
+
 }  // namespace
 
 double chiSquareQuantile(double probability, int dof) {
@@ -86,7 +103,9 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       nw_(geometry.numWheels()),
       nc_(config.slip_noise.hasCommonSlip() ? kCommonSlipStates : 0),
       kc_(I::commonSlip(nw_)),
-      n_(ekfStates(nw_, nc_)) {
+      na_(config.accel.hasBias() ? kAccelBiasStates : 0),
+      ka_(I::accelBias(nw_, nc_)),
+      n_(ekfStates(nw_, nc_, na_)) {
   S_ =
       (three_axis_ ? sensors::GyroAxes::threeAxis() : sensors::GyroAxes::headingOnly()).selection();
   gate2_ = chiSquareQuantile(options.gate_probability, 2);
@@ -126,6 +145,23 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
     const auto& sn = config.slip_noise;
     P_(kc_, kc_) = sn.common_longitudinal_mps * sn.common_longitudinal_mps;
     P_(kc_ + 1, kc_ + 1) = sn.common_lateral_mps * sn.common_lateral_mps;
+  }
+  if (na_ > 0) {
+    const Mat3d Sb = Mat3d::Identity() * std::pow(config.accel.bias_sigma_mps2, 2);
+    P_.block<3, 3>(ka_, ka_) = Sb;
+    if (init.roll_pitch_from_gravity) {
+      // Roll and pitch were read from gravity as if b_a were 0: h(q̂, 0) = h(q, b_a), so to
+      // first order H_θ δθ = −H_b b_a (δθ = q ⊟ q̂), δθ = −M b_a with M = H_θ⁺ H_b (H_θ⁺ the
+      // minimum-norm inverse: no yaw). The attitude gains M Σ_b Mᵀ, correlated with b_a.
+      Vec2d h;
+      const Eigen::Matrix<double, 2, 6> J =
+          gravityJacobian(q_, Vec3d::Zero(), config.gravity_mps2, &h);
+      const Eigen::Matrix<double, 2, 3> Ht = J.leftCols<3>(), Hb = J.rightCols<3>();
+      const Mat3d M = Ht.transpose() * (Ht * Ht.transpose()).inverse() * Hb;
+      P_.block<3, 3>(I::kTheta, I::kTheta) += M * Sb * M.transpose();
+      P_.block<3, 3>(I::kTheta, ka_) = -M * Sb;
+      P_.block<3, 3>(ka_, I::kTheta) = -Sb * M.transpose();
+    }
   }
 }
 
@@ -193,8 +229,8 @@ void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
           const Quat<T> q = so3::boxplus(Quat<T>(q_.cast<T>()), Vec3<T>(z.template head<3>()));
           const Vec3<T> wt = omega<T>(z.template segment<3>(3), z.template tail<3>(), in);
           return sensors::velocityRateFromAccel<T>(
-              in.accel.cast<T>(), q, Vec3<T>(z.template segment<3>(6)), wt, Vec3<T>::Zero(),
-              config_.accel.lever_arm_m, config_.gravity_mps2);
+              Vec3<T>((in.accel - ba_).cast<T>()), q, Vec3<T>(z.template segment<3>(6)), wt,
+              Vec3<T>::Zero(), config_.accel.lever_arm_m, config_.gravity_mps2);
         },
         s, &rate, &J);
     out->v_dot = rate;
@@ -202,6 +238,8 @@ void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
     F.block<3, 3>(I::kVel, I::kRate) = J.block<3, 3>(0, 3);
     F.block<3, 3>(I::kVel, I::kVel) = J.block<3, 3>(0, 6);
     F.block<3, 3>(I::kVel, I::kBias) = J.block<3, 3>(0, 9);
+    // v̇ is a_m − b_a − (…): linear in the reading, so ∂v̇/∂b_a = −I exactly.
+    if (na_ > 0) F.block<3, 3>(I::kVel, ka_) = -Mat3d::Identity();
   } else if (!d.accel_driven) {
     F.block<3, 3>(I::kVel, I::kVel).diagonal().setConstant(d.a_v);
   }  // (O-4 across an accelerometer gap: v̇ = 0, a random walk)
@@ -242,6 +280,8 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
     qc[kc_] = -2.0 * d.a_c * sn.common_longitudinal_mps * sn.common_longitudinal_mps;
     qc[kc_ + 1] = -2.0 * d.a_c * sn.common_lateral_mps * sn.common_lateral_mps;
   }
+  if (na_ > 0)
+    qc.segment<3>(ka_).setConstant(std::pow(config_.accel.bias_random_walk_mps2_per_sqrt_s, 2));
 
   if (recording_) {
     if (updating_) {  // the updates since the last propagation made a posterior
@@ -358,6 +398,9 @@ void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P) {
     case ekfStates(6, kCommonSlipStates):
       propagateKernel<ekfStates(6, kCommonSlipStates)>(F.data(), dt, P->data(), n);
       break;
+    case ekfStates(4, 0, kAccelBiasStates):  // a four-wheel rover with a real IMU
+      propagateKernel<ekfStates(4, 0, kAccelBiasStates)>(F.data(), dt, P->data(), n);
+      break;
     default:
       propagateKernel<Eigen::Dynamic>(F.data(), dt, P->data(), n);
       break;
@@ -394,6 +437,9 @@ void josephUpdate(EkfMatrix* P, const EkfCols<M>& K, const EkfCols<M>& PHt,
       break;
     case ekfStates(6, kCommonSlipStates):
       josephKernel<ekfStates(6, kCommonSlipStates), M>(P->data(), n, Kt, HP, S);
+      break;
+    case ekfStates(4, 0, kAccelBiasStates):
+      josephKernel<ekfStates(4, 0, kAccelBiasStates), M>(P->data(), n, Kt, HP, S);
       break;
     default:
       josephKernel<Eigen::Dynamic, M>(P->data(), n, Kt, HP, S);
@@ -434,6 +480,7 @@ void Ekf::absorb(const EkfVector& dx) {
   xi_ += dx.segment(I::kXi, nw_);
   b_ += dx.segment<3>(I::kBias);
   if (nc_ > 0) c_ += dx.segment<2>(kc_);
+  if (na_ > 0) ba_ += dx.segment<3>(ka_);
   // Reset Jacobian of the attitude error: δθ⁺ ≈ (I − ½[dθ]×) δθ.
   const Mat3d G = detail::resetJacobian(dtheta);
   P_.middleRows<3>(I::kTheta) = G * P_.middleRows<3>(I::kTheta);
@@ -615,16 +662,13 @@ void Ekf::updateRestBias(const EkfInputs& in) {
 }
 
 void Ekf::updateGravity(const sensors::RollPitchMeasurement& m) {
+  // The rest window's mean specific force R(q)ᵀ (0, 0, g) + b_a, seen as roll and pitch
+  // (sensors::gravityRollPitchPredict with the bias): differentiated in δθ and δb_a.
   Vec2d h;
-  Eigen::Matrix<double, 2, 3> J;
-  jacobian<2, 3>(
-      [&](const auto& d) {
-        using T = typename std::decay_t<decltype(d)>::Scalar;
-        return sensors::gravityRollPitchPredict<T>(so3::boxplus(Quat<T>(q_.cast<T>()), Vec3<T>(d)));
-      },
-      Vec3d::Zero().eval(), &h, &J);
+  const Eigen::Matrix<double, 2, 6> J = gravityJacobian(q_, ba_, config_.gravity_mps2, &h);
   EkfRows<2> H = EkfRows<2>::Zero(2, n_);
-  H.block<2, 3>(0, I::kTheta) = J;
+  H.block<2, 3>(0, I::kTheta) = J.leftCols<3>();
+  if (na_ > 0) H.block<2, 3>(0, ka_) = J.rightCols<3>();
   const Vec2d r(so3::wrapAngle(m.roll_pitch.x() - h.x()), so3::wrapAngle(m.roll_pitch.y() - h.y()));
   update<2>(r, H, m.covariance, 0.0);
   ++stats_.gravity_updates;
@@ -648,6 +692,10 @@ TrajectoryNode Ekf::nodeOf(const EkfState& s, const EkfMatrix& P, double t,
   n.bias = s.bias;
   n.bias_sigma = P.block<3, 3>(I::kBias, I::kBias).diagonal().cwiseSqrt();
   n.common_slip = s.common_slip;
+  if (na_ > 0) {
+    n.accel_bias = s.accel_bias;
+    n.accel_bias_sigma = P.block<3, 3>(ka_, ka_).diagonal().cwiseSqrt();
+  }
   n.covariance.topLeftCorner<3, 3>() = P.block<3, 3>(I::kPos, I::kPos);
   n.covariance.bottomRightCorner<3, 3>() = P.block<3, 3>(I::kTheta, I::kTheta);
   n.covariance.topRightCorner<3, 3>() = P.block<3, 3>(I::kPos, I::kTheta);

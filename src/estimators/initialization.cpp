@@ -31,6 +31,7 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
   if (w && w->has_gravity) {
     roll = w->roll_pitch.roll_pitch.x(), pitch = w->roll_pitch.roll_pitch.y();
     s.attitude_sigma.head<2>() = w->roll_pitch.covariance.diagonal().cwiseSqrt();
+    s.roll_pitch_from_gravity = true;
   }
   Vec2d sun = Vec2d::Zero();
   bool have_sun = false;

@@ -9,7 +9,13 @@ void writeSegments(const std::filesystem::path& file, const std::vector<SegmentR
   std::string text =
       "segment,t_start,t_end,kind,bias_x,bias_y,bias_z,sigma_bias_x,sigma_bias_y,sigma_bias_z,"
       "status,iterations,"
-      "final_cost,solve_seconds\n";
+      "final_cost,solve_seconds";
+  const bool accel = !rows.empty() && rows.front().accel_bias.has_value();
+  if (accel)
+    text +=
+        ",accel_bias_x,accel_bias_y,accel_bias_z,sigma_accel_bias_x,sigma_accel_bias_y,"
+        "sigma_accel_bias_z";
+  text += "\n";
   char buf[32];
   auto num = [&](double v) { text.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr); };
   for (const SegmentRow& r : rows) {
@@ -25,6 +31,11 @@ void writeSegments(const std::filesystem::path& file, const std::vector<SegmentR
     if (r.final_cost) num(*r.final_cost);
     text += ",";
     if (r.solve_seconds) num(*r.solve_seconds);
+    if (accel) {
+      const Vec3d b = r.accel_bias.value_or(Vec3d::Zero());
+      for (int i = 0; i < 3; ++i) text += ",", num(b[i]);
+      for (int i = 0; i < 3; ++i) text += ",", num(r.sigma_accel_bias[i]);
+    }
     text += "\n";
   }
   io::writeFileAtomically(file, text);

@@ -54,9 +54,16 @@ void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
       r.number(s, "sun_sensor", "field_of_view_rad", c.sun_sensor.field_of_view_rad, 0.01, M_PI);
   c.sun_sensor.noise = r.number(s, "sun_sensor", "noise", c.sun_sensor.noise, 0.0, 1.0);
 
-  const YAML::Node a = r.section(root, "accelerometer", {"lever_arm_m", "noise_mps2"});
+  const YAML::Node a = r.section(
+      root, "accelerometer",
+      {"lever_arm_m", "noise_mps2", "bias_sigma_mps2", "bias_random_walk_mps2_per_sqrt_s"});
   c.accel.lever_arm_m = r.vec3(a, "accelerometer", "lever_arm_m", c.accel.lever_arm_m);
   c.accel.noise_mps2 = r.number(a, "accelerometer", "noise_mps2", c.accel.noise_mps2, 0.0, 100.0);
+  c.accel.bias_sigma_mps2 =
+      r.number(a, "accelerometer", "bias_sigma_mps2", c.accel.bias_sigma_mps2, 0.0, 5.0);
+  c.accel.bias_random_walk_mps2_per_sqrt_s =
+      r.number(a, "accelerometer", "bias_random_walk_mps2_per_sqrt_s",
+               c.accel.bias_random_walk_mps2_per_sqrt_s, 0.0, 1.0);
 
   const YAML::Node j = r.section(
       root, "joint_sensors",
@@ -343,7 +350,13 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   out << YAML::Key << "accelerometer" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm_m"
       << YAML::Value;
   vec(c.accel.lever_arm_m);
-  out << YAML::Key << "noise_mps2" << YAML::Value << num(c.accel.noise_mps2) << YAML::EndMap;
+  out << YAML::Key << "noise_mps2" << YAML::Value << num(c.accel.noise_mps2);
+  if (c.accel.bias_sigma_mps2 > 0.0)
+    out << YAML::Key << "bias_sigma_mps2" << YAML::Value << num(c.accel.bias_sigma_mps2);
+  if (c.accel.bias_random_walk_mps2_per_sqrt_s > 0.0)
+    out << YAML::Key << "bias_random_walk_mps2_per_sqrt_s" << YAML::Value
+        << num(c.accel.bias_random_walk_mps2_per_sqrt_s);
+  out << YAML::EndMap;
   out << YAML::Key << "sun" << YAML::Value << YAML::BeginMap << YAML::Key << "direction_site"
       << YAML::Value;
   vec(c.sun.direction_site);

@@ -156,11 +156,16 @@ void readSensors(const YamlReader& r, const YAML::Node& root, SensorSpec& s) {
   s.sun_fov_rad = r.number(u, pu, "fov_rad", s.sun_fov_rad, 0.01, M_PI);
   s.sun_direction = r.vec3(u, pu, "direction_site", s.sun_direction).normalized();
   s.sun_azimuth_rate_rad_s = r.number(u, pu, "azimuth_rate_rad_s", s.sun_azimuth_rate_rad_s, -1, 1);
-  const YAML::Node a = r.section(n, "accel", {"enabled", "rate_hz", "noise_mps2", "lever_arm_m"});
+  const YAML::Node a = r.section(
+      n, "accel",
+      {"enabled", "rate_hz", "noise_mps2", "lever_arm_m", "bias_mps2", "bias_sigma_mps2"});
   s.accel = r.boolean(a, "sensors.accel", "enabled", s.accel);
   s.accel_rate_hz = r.number(a, "sensors.accel", "rate_hz", s.accel_rate_hz, 0.1, 2000);
   s.accel_noise_mps2 = r.number(a, "sensors.accel", "noise_mps2", s.accel_noise_mps2, 0, 10);
   s.accel_lever_arm_m = r.vec3(a, "sensors.accel", "lever_arm_m", s.accel_lever_arm_m);
+  s.accel_bias_mps2 = r.vec3(a, "sensors.accel", "bias_mps2", s.accel_bias_mps2);
+  s.accel_bias_sigma_mps2 =
+      r.number(a, "sensors.accel", "bias_sigma_mps2", s.accel_bias_sigma_mps2, 0, 5);
   const YAML::Node j = r.section(n, "joints",
                                  {"rate_hz", "angle_noise_rad", "steering_noise_rad",
                                   "angle_quantum_rad", "wheel_noise_rad", "wheel_quantum_rad"});

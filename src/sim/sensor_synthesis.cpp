@@ -77,6 +77,7 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
   c.slip_noise.lateral_mps = std::sqrt(c.slip_noise.lateral_mps * c.slip_noise.lateral_mps + lat2);
   c.accel.lever_arm_m = s.accel_lever_arm_m;
   c.accel.noise_mps2 = s.accel_noise_mps2;
+  c.accel.bias_sigma_mps2 = s.accel_bias_sigma_mps2;
   c.gps.antenna_body_m = s.gps_antenna_body_m;
   c.joints.angle_noise_rad =
       std::max(s.joint_angle_noise_rad, s.joint_quantum_rad / std::sqrt(12.0));
@@ -175,7 +176,8 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
           const Vec3d a = sensors::accelPredict<double>(x.q_site_body, x.a_body, x.v_body, x.w_body,
                                                         x.w_dot_body, s.accel_lever_arm_m,
                                                         sc.gravity_mps2);  // K-10
-          for (int c = 0; c < 3; ++c) row[c] = a[c] + s.accel_noise_mps2 * accel_rng.normal();
+          for (int c = 0; c < 3; ++c)
+            row[c] = a[c] + s.accel_bias_mps2[c] + s.accel_noise_mps2 * accel_rng.normal();
         });
   }
   if (s.cmd) {

@@ -22,7 +22,8 @@ bool segmentCovariance(const ResidualCollector& residuals, std::span<const NodeH
   const int wheels = nodes.front().xi.place.size;
   const int common = nodes.front().c.place.size;
   const int node_dim = NodeColumns::states(wheels, common) + (node_bias ? bias.place.size : 0);
-  const int global_dim = node_bias ? 0 : bias.place.size;
+  const BlockHandle& accel_bias = nodes.front().ba;  // size 0 without
+  const int global_dim = (node_bias ? 0 : bias.place.size) + accel_bias.place.size;
   ChainInformation H = makeChainInformation(static_cast<int>(nodes.size()), node_dim, global_dim);
   std::vector<double> jacobian;
   std::array<ChainPlace, kMaxBlocksPerResidual> places;
@@ -59,6 +60,10 @@ bool segmentCovariance(const ResidualCollector& residuals, std::span<const NodeH
       const int col = NodeColumns::bias(wheels, common) + c;
       const double var = node_bias ? S(col, col) : m.global(c, c);
       node.bias_sigma[bias_axes[i]] = std::sqrt(std::max(var, 0.0));
+    }
+    if (accel_bias.size > 0) {
+      const int c = accel_bias.place.col;
+      node.accel_bias_sigma = m.global.block<3, 3>(c, c).diagonal().cwiseMax(0.0).cwiseSqrt();
     }
   }
   return true;

@@ -119,6 +119,7 @@ class SegmentBuilder {
         n_(spec.last - spec.first + 1),
         nw_(d.log.geometry.numWheels()),
         nc_(d.log.config.slip_noise.hasCommonSlip() ? 2 : 0),
+        na_(d.log.config.accel.hasBias() && d.log.accel ? 3 : 0),
         contact_memo_(static_cast<size_t>(nw_)) {
     ceres::Problem::Options po;
     // The builder owns every cost function (residuals_), loss and manifold: a Problem that owns
@@ -182,11 +183,13 @@ class SegmentBuilder {
   size_t n_;
   int nw_;  ///< wheels
   int nc_;  ///< common slip states per node (0 or 2)
+  int na_;  ///< the segment's accelerometer-bias states (0 or 3)
   std::vector<NodeBlocks> nodes_;
   double segment_bias_[3] = {0, 0, 0};
-  std::vector<NodeHandles> handles_;  ///< per node; never resized once made
-  std::vector<unsigned char> rest_;   ///< node inside a rest window's trimmed part
-  Eigen::Index sun_next_ = 0;         ///< next sun reading addSunResiduals looks at
+  double segment_accel_bias_[3] = {0, 0, 0};  ///< b_a (body, m/s²), one per segment
+  std::vector<NodeHandles> handles_;          ///< per node; never resized once made
+  std::vector<unsigned char> rest_;           ///< node inside a rest window's trimmed part
+  Eigen::Index sun_next_ = 0;                 ///< next sun reading addSunResiduals looks at
   Vec3d gyro_axes_;
   ResidualCollector residuals_;  ///< owns the cost functions: outlives problem_ (declared first)
   /// Every slip residual's numbers, one array (SlipResidual refers to them): reserved for all
@@ -228,6 +231,8 @@ void SegmentBuilder::seedStates() {
   }
   // Constant bias: the seed's at the segment's middle (the EKF has seen the first rest by then).
   Eigen::Map<Vec3d>{segment_bias_} = seedNode(n_ / 2).bias;
+  // The accelerometer's bias: the EKF's at the segment's start (its prior there, addStartPriors).
+  Eigen::Map<Vec3d>{segment_accel_bias_} = seedNode(0).accel_bias;
 }
 
 void SegmentBuilder::makeHandles() {
@@ -236,6 +241,13 @@ void SegmentBuilder::makeHandles() {
   const int bias_dim = bias_manifold ? bias_manifold->TangentSize() : 3;
   const BlockHandle segment_bias{
       segment_bias_, 3, {ChainPlace::kGlobal, 0, bias_dim}, bias_manifold};
+  // b_a: global columns after the constant gyro bias (the random-walk bias is on the nodes).
+  const BlockHandle accel_bias =
+      na_ > 0 ? BlockHandle{segment_accel_bias_,
+                            3,
+                            {ChainPlace::kGlobal, randomWalkBias() ? 0 : bias_dim, 3},
+                            nullptr}
+              : BlockHandle{};
   handles_.resize(n_);
   for (size_t k = 0; k < n_; ++k) {
     NodeBlocks& b = nodes_[k];
@@ -248,7 +260,8 @@ void SegmentBuilder::makeHandles() {
         {b.xi, nw_, {node, C::kContact, nw_}, nullptr},
         randomWalkBias() ? BlockHandle{b.b, 3, {node, C::bias(nw_, nc_), bias_dim}, bias_manifold}
                          : segment_bias,
-        nc_ > 0 ? BlockHandle{b.c, nc_, {node, C::commonSlip(nw_), nc_}, nullptr} : BlockHandle{}};
+        nc_ > 0 ? BlockHandle{b.c, nc_, {node, C::commonSlip(nw_), nc_}, nullptr} : BlockHandle{},
+        accel_bias};
   }
 }
 
@@ -309,6 +322,7 @@ void SegmentBuilder::addParameterBlocks() {
     if (randomWalkBias()) add(h.bias);
   }
   if (!randomWalkBias()) add(handles_.front().bias);
+  if (na_ > 0) add(handles_.front().ba);
 }
 
 void SegmentBuilder::addProcessResiduals(size_t k) {
@@ -385,7 +399,7 @@ void SegmentBuilder::addRestWindowResiduals() {
     const size_t mid = (first + last) / 2;
     addRestBias(residuals_, d_.gyro.integral(time(first), time(last)) / duration,
                 cfg_.gyro.noise_rad_s, d_.gyro_period_s, duration, gyro_axes_, handles_[mid]);
-    if (w->has_gravity) addGravity(residuals_, w->roll_pitch, handles_[mid]);
+    if (w->has_gravity) addGravity(residuals_, w->roll_pitch, handles_[mid], cfg_.gravity_mps2);
   }
 }
 
@@ -430,6 +444,19 @@ void SegmentBuilder::addStartPriors() {
   // Without a rest window the bias keeps the EKF's estimate as a prior.
   if (spec_.rests.empty() || !o_.use_rest)
     addBiasPrior(residuals_, s.bias, s.bias_sigma, handles_[0]);
+  // The accelerometer's bias always does: one rest's gravity cannot tell a tilt of the attitude
+  // from a tilt of b_a (both move roll and pitch alike), so without it a segment's b_a would be
+  // unobserved wherever the accelerometer does not drive the velocity. Its σ grows by the
+  // random walk over the segment (the constant b_a stands for the whole leg).
+  if (na_ > 0) {
+    const double rw = cfg_.accel.bias_random_walk_mps2_per_sqrt_s;
+    const double duration = time(n_ - 1) - time(0);
+    const Vec3d sigma =
+        (s.accel_bias_sigma.cwiseProduct(s.accel_bias_sigma).array() + rw * rw * duration)
+            .sqrt()
+            .matrix();
+    addAccelBiasPrior(residuals_, s.accel_bias, sigma, handles_[0]);
+  }
 }
 
 SegmentSolution SegmentBuilder::solve() {
@@ -503,6 +530,7 @@ SegmentSolution SegmentBuilder::solve() {
     node.xi = Eigen::Map<const rover::WheelVectord>(b.xi, nw_);
     node.bias = Eigen::Map<const Vec3d>(randomWalkBias() ? b.b : segment_bias_);
     if (nc_ > 0) node.common_slip = Eigen::Map<const Vec2d>(b.c);
+    if (na_ > 0) node.accel_bias = Eigen::Map<const Vec3d>(segment_accel_bias_);
   }
   if (sum.status != SegmentStatus::kFallbackEkf && o_.covariance) {
     const auto tc = std::chrono::steady_clock::now();

@@ -28,7 +28,7 @@ ceres::Solver::Options segmentSolverOptions(const SmootherOptions& o,
   so.minimizer_progress_to_stdout = o.solver_report;
   so.initial_trust_region_radius = o.initial_trust_region_radius;
   if (o.chain_ordering && !nodes.empty()) {
-    // Eliminate node by node in time order, the segment bias last: the normal equations are a
+    // Eliminate node by node in time order, the segment's biases last: the normal equations are a
     // band (each residual ties nodes k and k+1) with one dense border, so this order has no
     // fill outside the band and keeps the factor's memory local — AMD on the whole problem
     // scatters a chain and grows worse than linearly with its length.
@@ -44,6 +44,8 @@ ceres::Solver::Options segmentSolverOptions(const SmootherOptions& o,
     const BlockHandle& bias = nodes.front().bias;
     if (bias.place.node == ChainPlace::kGlobal)
       ordering->AddElementToGroup(bias.data, static_cast<int>(nodes.size()));
+    if (nodes.front().ba.size > 0)
+      ordering->AddElementToGroup(nodes.front().ba.data, static_cast<int>(nodes.size()));
     so.linear_solver_ordering = ordering;
   }
   return so;

@@ -3,9 +3,10 @@
 // Nominal state: attitude q (body → site), rate perturbation ω_p, position x (site), velocity
 // perturbation v_p (body), gyro bias b, contact angles ξ1..ξN (one per wheel of the rover's
 // URDF), and, when rover.yaml declares it (slip_noise.common_*), the wheels' common slip
-// c = (c_x, c_y) (body, m/s; a Gauss–Markov process: ċ = −c/τ + n_c). Error state (15 + N + C,
-// C = 0 or 2):
-//   [δθ (body small angle, q = q̂ ⊗ Exp(δθ)), δω_p, δx, δv_p, δb, δξ, δc].
+// c = (c_x, c_y) (body, m/s; a Gauss–Markov process: ċ = −c/τ + n_c), and, when rover.yaml
+// declares accelerometer.bias_sigma_mps2, the accelerometer's bias b_a (body, m/s²; a random
+// walk). Error state (15 + N + C + A, C = 0 or 2, A = 0 or 3):
+//   [δθ (body small angle, q = q̂ ⊗ Exp(δθ)), δω_p, δx, δv_p, δb, δξ, δc, δb_a].
 // Process (continuous-discrete): K-1 ẋ = R(q)(v_c + v_p), v̇_p = A_v v_p + n_v; K-2/K-7 attitude
 // with ω = ω_c + ω_p (gyro as a measurement, K-12) or the hybrid O-1 form ω = B_gᵀ(ω_m − b) +
 // ω_p on the measured axes (default; the gyro drives the heading); K-8 ξ̇ = A_ξ ξ + n_ξ;
@@ -30,13 +31,15 @@
 
 namespace traverse::est {
 
-/// Size of the error state of a rover with `wheels` wheels and `common_slip` (0 or 2) common
-/// slip states, and its largest value.
-constexpr int ekfStates(int wheels, int common_slip = 0) {
-  return 15 + wheels + common_slip;
+/// Size of the error state of a rover with `wheels` wheels, `common_slip` (0 or 2) common slip
+/// states and `accel_bias` (0 or 3) accelerometer-bias states, and its largest value.
+constexpr int ekfStates(int wheels, int common_slip = 0, int accel_bias = 0) {
+  return 15 + wheels + common_slip + accel_bias;
 }
 inline constexpr int kCommonSlipStates = 2;
-inline constexpr int kMaxEkfStates = ekfStates(rover::kMaxWheels, kCommonSlipStates);
+inline constexpr int kAccelBiasStates = 3;
+inline constexpr int kMaxEkfStates =
+    ekfStates(rover::kMaxWheels, kCommonSlipStates, kAccelBiasStates);
 /// Error-state vectors and matrices: fixed storage (no heap), size ekfStates(wheels).
 using EkfVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxEkfStates, 1>;
 using EkfMatrix =
@@ -48,11 +51,12 @@ using EkfRows = Eigen::Matrix<double, M, Eigen::Dynamic, M == 1 ? Eigen::RowMajo
 template <int M>
 using EkfCols = Eigen::Matrix<double, Eigen::Dynamic, M, 0, kMaxEkfStates, M>;
 
-/// Offsets of the error-state blocks (ξ then c last: their offsets depend on the rover's wheel
-/// count; c starts at commonSlip(N)).
+/// Offsets of the error-state blocks (ξ, c and b_a last: their offsets depend on the rover's
+/// wheel count; c starts at commonSlip(N), b_a at accelBias(N, C)).
 struct EkfIndex {
   static constexpr int kTheta = 0, kRate = 3, kPos = 6, kVel = 9, kBias = 12, kXi = 15;
   static constexpr int commonSlip(int wheels) { return kXi + wheels; }
+  static constexpr int accelBias(int wheels, int common_slip) { return kXi + wheels + common_slip; }
 };
 
 struct EkfOptions {
@@ -122,6 +126,7 @@ struct EkfState {
   rover::WheelVectord xi;             ///< contact angles ξ1..ξN
   Vec3d bias = Vec3d::Zero();         ///< gyro bias b
   Vec2d common_slip = Vec2d::Zero();  ///< c (body x, y; zero without the state)
+  Vec3d accel_bias = Vec3d::Zero();   ///< b_a (body, m/s²; zero without the state)
 };
 
 /// What a Rauch–Tung–Striebel pass over the filter needs (rts.h), recorded while it runs: the
@@ -204,15 +209,18 @@ class Ekf {
   const EkfMatrix& covariance() const { return P_; }
   /// Replaces the covariance (tests; P must be symmetric positive semi-definite).
   void setCovariance(const EkfMatrix& P) { P_ = P; }
-  EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_, c_}; }
-  /// Size of the error state: ekfStates(number of wheels, common slip states).
+  EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_, c_, ba_}; }
+  /// Size of the error state: ekfStates(wheels, common slip states, accelerometer-bias states).
   int numStates() const { return n_; }
   /// Whether the state has the common slip c (rover.yaml declares its σ).
   bool hasCommonSlip() const { return nc_ > 0; }
+  /// Whether the state has the accelerometer's bias b_a (rover.yaml declares its σ).
+  bool hasAccelBias() const { return na_ > 0; }
   /// Replaces the nominal state (tests).
   void setState(const EkfState& s) {
     q_ = s.q_site_body, w_p_ = s.w_p, x_ = s.p_site, v_p_ = s.v_p, xi_ = s.xi, b_ = s.bias;
     c_ = nc_ > 0 ? s.common_slip : Vec2d::Zero();
+    ba_ = na_ > 0 ? s.accel_bias : Vec3d::Zero();
   }
 
   /// Body rate and velocity of the current estimate (templated so Jets differentiate them).
@@ -260,7 +268,10 @@ class Ekf {
   Vec3d w_p_, x_, v_p_, b_;
   rover::WheelVectord xi_;
   Vec2d c_ = Vec2d::Zero();
-  int nw_, nc_, kc_, n_;  ///< wheels, common slip states (0, 2), their offset, error-state size
+  Vec3d ba_ = Vec3d::Zero();
+  /// Wheels, common slip states (0, 2) and their offset, accelerometer-bias states (0, 3) and
+  /// their offset, error-state size.
+  int nw_, nc_, kc_, na_, ka_, n_;
   EkfMatrix P_;
   EkfStats stats_;
   // RTS recording (startRecording): Φ since the latest posterior, whether updates followed it.

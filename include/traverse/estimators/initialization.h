@@ -25,6 +25,9 @@ struct InitialState {
   /// 1σ of roll, pitch, yaw (rad) and of the bias (rad/s) behind the values above.
   Vec3d attitude_sigma = Vec3d::Constant(0.1);
   Vec3d bias_sigma = Vec3d::Constant(0.005);
+  /// Roll and pitch came from the first rest window's gravity: they are then off by what an
+  /// accelerometer bias tilts gravity by (the EKF correlates them with b_a when it carries it).
+  bool roll_pitch_from_gravity = false;
 };
 
 InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,

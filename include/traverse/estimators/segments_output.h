@@ -16,12 +16,19 @@ struct SegmentRow {
   double t_start = 0.0, t_end = 0.0;
   Segment::Kind kind = Segment::Kind::kRest;
   Vec3d bias = Vec3d::Zero(), sigma_bias = Vec3d::Zero();
+  /// The accelerometer's bias (body, m/s²) ± σ when the rover declares it (rover.yaml
+  /// accelerometer.bias_sigma_mps2): the estimator's at the segment's end (EKF) or the smoother
+  /// segment's constant. Unset: no such columns.
+  std::optional<Vec3d> accel_bias;
+  Vec3d sigma_accel_bias = Vec3d::Zero();
   std::string status;  ///< converged | no_convergence | fallback_ekf; empty without a smoother
   std::optional<int> iterations;
   std::optional<double> final_cost, solve_seconds;
 };
 
-/// Writes the rows atomically (empty fields where a value does not apply).
+/// Writes the rows atomically (empty fields where a value does not apply). When the rows carry
+/// the accelerometer's bias, six columns follow solve_seconds: accel_bias_x, _y, _z and
+/// sigma_accel_bias_x, _y, _z (m/s²).
 void writeSegments(const std::filesystem::path& file, const std::vector<SegmentRow>& rows);
 
 }  // namespace traverse::est

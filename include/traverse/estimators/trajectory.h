@@ -28,6 +28,9 @@ struct TrajectoryNode {
   /// The wheels' common slip c (body x, y; m/s) when the estimator carries it
   /// (rover.yaml slip_noise.common_*), else zero (not written to the node files).
   Vec2d common_slip = Vec2d::Zero();
+  /// The accelerometer's bias b_a (body, m/s²) and its 1σ when the estimator carries it
+  /// (rover.yaml accelerometer.bias_sigma_mps2), else zero (not written to the node files).
+  Vec3d accel_bias = Vec3d::Zero(), accel_bias_sigma = Vec3d::Zero();
 };
 
 struct Trajectory {

@@ -41,6 +41,14 @@ struct SunSensorConfig {
 struct AccelConfig {
   Vec3d lever_arm_m = Vec3d::Zero();  ///< L^b: body origin → accelerometer (K-10)
   double noise_mps2 = 0.01;           ///< white noise, 1σ per sample
+  /// The accelerometer's bias b_a (body axes, m/s²): 1σ per axis at the log's start. Above 0
+  /// the EKF and the smoother estimate it (three states; a_m = K-10 + b_a), observed at rests
+  /// through gravity (as the attitude changes between them) and, with the accelerometer
+  /// driving the velocity, by the wheels; 0: the readings are taken as unbiased (no states).
+  double bias_sigma_mps2 = 0.0;
+  /// Its random walk (m/s²/√s; K-9's form for the accelerometer): 0 is a constant bias.
+  double bias_random_walk_mps2_per_sqrt_s = 0.0;
+  bool hasBias() const { return bias_sigma_mps2 > 0.0; }
 };
 
 /// Sun direction in the site frame: fixed, or azimuth/elevation over time.

@@ -27,6 +27,16 @@ Vec2<T> gravityRollPitchPredict(const Quat<T>& q_site_body) {
   return rollPitchFromSpecificForce(Vec3<T>(q_site_body.conjugate() * Vec3<T>::UnitZ()));
 }
 
+/// The same with an accelerometer bias b_a (body, m/s²): the window's mean specific force is
+/// R(q)ᵀ (0, 0, g) + b_a (K-10 at rest plus the bias), so b_a tilts the apparent gravity by
+/// about |b_a⊥| / g. At b_a = 0 it equals the bias-free form for any g > 0.
+template <typename T>
+Vec2<T> gravityRollPitchPredict(const Quat<T>& q_site_body, const Vec3<T>& accel_bias,
+                                double gravity) {
+  return rollPitchFromSpecificForce(
+      Vec3<T>(q_site_body.conjugate() * Vec3<T>(T(0), T(0), T(gravity)) + accel_bias));
+}
+
 /// A roll/pitch measurement with its covariance.
 struct RollPitchMeasurement {
   Vec2d roll_pitch = Vec2d::Zero();

@@ -64,6 +64,10 @@ struct SensorSpec {
   double accel_rate_hz = 20.0;
   double accel_noise_mps2 = 0.01;
   Vec3d accel_lever_arm_m = Vec3d(0.0, 0.0, 0.05);
+  /// A constant accelerometer bias added to every reading (body, m/s²), and the 1σ the log's
+  /// rover.yaml declares for it (accelerometer.bias_sigma_mps2; 0: none declared, no states).
+  Vec3d accel_bias_mps2 = Vec3d::Zero();
+  double accel_bias_sigma_mps2 = 0.0;
   double joints_rate_hz = 20.0;
   double joint_angle_noise_rad = 0.0;  ///< suspension potentiometers γ
   double steering_noise_rad = 0.0;     ///< steering potentiometers λ

@@ -47,8 +47,10 @@ struct NodeColumns {
 /// Node k's blocks. `bias` is the gyro bias its residuals use: the node's own (random-walk
 /// model; place on node k) or the segment's (constant model; ChainPlace::kGlobal). `c`: the
 /// wheels' common slip (body x, y), size 0 (no storage) when the rover does not declare it.
+/// `ba`: the accelerometer's bias (body, m/s²), one per segment (ChainPlace::kGlobal, after the
+/// constant gyro bias), size 0 when the rover does not declare it or the log has no accel.csv.
 struct NodeHandles {
-  BlockHandle q, x, v, w, xi, bias, c;
+  BlockHandle q, x, v, w, xi, bias, c, ba;
 };
 
 /// The last functor one kind of residual was made from, and its cost function. Nodes are mostly
@@ -64,8 +66,8 @@ struct CostMemo {
   ceres::CostFunction* f = nullptr;
 };
 
-/// Most parameter blocks any residual here takes (the position and accelerometer processes).
-constexpr int kMaxBlocksPerResidual = 6;
+/// Most parameter blocks any residual here takes (the accelerometer process with its bias).
+constexpr int kMaxBlocksPerResidual = 7;
 
 /// One residual block as added: its cost function, loss and parameter blocks, in the cost
 /// function's order.

@@ -11,7 +11,8 @@
 
 namespace traverse::smoother {
 
-/// Fills each out[k]'s covariance ([δp_site; δθ_body]) and bias_sigma from the residuals at the
+/// Fills each out[k]'s covariance ([δp_site; δθ_body]), bias_sigma and (with the segment's
+/// accelerometer bias, nodes[0].ba) accel_bias_sigma from the residuals at the
 /// blocks' current values. nodes: the segment's handles (node k's bias on node k with the
 /// random-walk model, on ChainPlace::kGlobal otherwise); bias_axes: the body axes of the bias's
 /// tangent columns, in order (all three, or z alone for a heading-only gyro). False if a block

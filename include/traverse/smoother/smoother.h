@@ -98,6 +98,9 @@ struct SegmentSummary {
   double t_start = 0.0, t_end = 0.0;
   size_t first_node = 0, num_nodes = 0;  ///< the nodes it reports in the smoothed trajectory
   Vec3d bias = Vec3d::Zero(), bias_sigma = Vec3d::Zero();
+  /// The accelerometer's bias (body, m/s²) and its σ when the rover declares it (else zero):
+  /// the segment's constant, or the EKF's at the segment's middle when it fell back.
+  Vec3d accel_bias = Vec3d::Zero(), accel_bias_sigma = Vec3d::Zero();
   SegmentStatus status = SegmentStatus::kFallbackEkf;
   int iterations = 0;
   /// ½ Σ ρ(‖r‖²): at the EKF's states (seed_cost), where Levenberg-Marquardt started (the EKF

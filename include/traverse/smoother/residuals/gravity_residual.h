@@ -3,9 +3,11 @@
 //
 //   r = L⁻¹ wrap(rp_m − h(q)),    h = sensors::gravityRollPitchPredict,  Σ_rp = L Lᵀ
 //
-// (Σ_rp from sensors::rollPitchAtRest: the accelerometer noise of the window's mean).
+// (Σ_rp from sensors::rollPitchAtRest: the accelerometer noise of the window's mean). When the
+// segment carries the accelerometer's bias b_a, h = gravityRollPitchPredict(q, b_a, g): the
+// window's mean specific force is R(q)ᵀ (0, 0, g) + b_a (GravityBiasResidual).
 //
-// Parameter block: q (x, y, z, w).
+// Parameter blocks: q (x, y, z, w); with the bias also b_a (body, m/s²).
 #pragma once
 
 #include <cmath>
@@ -46,13 +48,46 @@ struct GravityResidual {
   Eigen::Matrix2d sqrt_info;
 };
 
+/// The same seen through an accelerometer bias b_a.
+struct GravityBiasResidual {
+  GravityBiasResidual(const Vec2d& roll_pitch, const Eigen::Matrix2d& sqrt_info,
+                      double gravity_mps2)
+      : roll_pitch(roll_pitch), sqrt_info(sqrt_info), gravity(gravity_mps2) {}
+
+  template <typename T>
+  bool operator()(const T* q, const T* b_a, T* r) const {
+    const Vec2<T> h = sensors::gravityRollPitchPredict<T>(
+        Quat<T>(Eigen::Map<const Quat<T>>(q)), Vec3<T>(Eigen::Map<const Vec3<T>>(b_a)), gravity);
+    Vec2<T> e = roll_pitch.cast<T>() - h;
+    for (int i = 0; i < 2; ++i)
+      e[i] -= T(2.0 * M_PI * std::round(GravityResidual::scalar(e[i]) / (2.0 * M_PI)));
+    Eigen::Map<Vec2<T>>{r} = sqrt_info.cast<T>() * e;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Vec2d& roll_pitch, const Eigen::Matrix2d& sqrt_info,
+                                     double gravity_mps2) {
+    return new ceres::AutoDiffCostFunction<GravityBiasResidual, 2, 4, 3>(
+        new GravityBiasResidual(roll_pitch, sqrt_info, gravity_mps2));
+  }
+
+  Vec2d roll_pitch;
+  Eigen::Matrix2d sqrt_info;
+  double gravity;
+};
+
 /// Constraint (residual_collector.h): a rest window's roll and pitch at its middle node k,
-/// whitened by the measurement's covariance. Block q_k.
+/// whitened by the measurement's covariance. Block q_k, and the accelerometer bias when the
+/// segment has one (k.ba; gravity_mps2 then scales the bias's tilt).
 inline void addGravity(ResidualCollector& out, const sensors::RollPitchMeasurement& m,
-                       const NodeHandles& k) {
-  out.add("gravity",
-          GravityResidual::Create(m.roll_pitch, sqrtInformation<2>(m.covariance, "gravity")),
-          nullptr, k.q);
+                       const NodeHandles& k, double gravity_mps2) {
+  const Eigen::Matrix2d sqrt_info = sqrtInformation<2>(m.covariance, "gravity");
+  if (k.ba.size > 0) {
+    out.add("gravity", GravityBiasResidual::Create(m.roll_pitch, sqrt_info, gravity_mps2), nullptr,
+            k.q, k.ba);
+    return;
+  }
+  out.add("gravity", GravityResidual::Create(m.roll_pitch, sqrt_info), nullptr, k.q);
 }
 
 }  // namespace traverse::smoother

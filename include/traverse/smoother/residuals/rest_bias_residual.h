@@ -53,4 +53,13 @@ inline void addBiasPrior(ResidualCollector& out, const Vec3d& bias, const Vec3d&
   out.add("bias_prior", new RestBiasResidual(bias, s.cwiseInverse()), nullptr, k.bias);
 }
 
+/// Constraint: a prior on the segment's accelerometer bias (k.ba, same form: RestBiasResidual
+/// is a diagonal Gaussian on a 3-vector) — the EKF's estimate at the segment's first node with
+/// its σ (floored at 10⁻⁶ m/s²).
+inline void addAccelBiasPrior(ResidualCollector& out, const Vec3d& accel_bias, const Vec3d& sigma,
+                              const NodeHandles& k) {
+  const Vec3d s = sigma.cwiseMax(1e-6);
+  out.add("accel_bias_prior", new RestBiasResidual(accel_bias, s.cwiseInverse()), nullptr, k.ba);
+}
+
 }  // namespace traverse::smoother
