@@ -42,6 +42,25 @@ void checkGyroAxes(const fs::path& file, const Stream& gyro, const RoverConfig& 
                        " but rover.yaml gyro.axes is " + (want_three ? "'xyz'" : "'z'"));
 }
 
+/// rover.yaml's IMU mounting applied to the readings (f_body = R_body_imu f_imu, each row); the
+/// log then holds body-frame readings and its config says so (identity), so that nothing turns
+/// them twice — a log written back from it is in the body frame with no imu key.
+void applyImuMounting(TraverseLog& log) {
+  if (!log.config.imu.mounted()) return;
+  const Mat3d& R = log.config.imu.R_body_imu;
+  const auto turn = [&](Stream& s, const char* x, const char* y, const char* z) {
+    const int cx = s.col(x), cy = s.col(y), cz = s.col(z);
+    for (Eigen::Index k = 0; k < s.size(); ++k) {
+      const Vec3d f = R * Vec3d(s.values(k, cx), s.values(k, cy), s.values(k, cz));
+      s.values(k, cx) = f.x(), s.values(k, cy) = f.y(), s.values(k, cz) = f.z();
+    }
+  };
+  // A heading gyro's mounting is a yaw (rover_config.cpp refuses any other): its wz is the body's.
+  if (log.gyro.columns.size() == 3) turn(log.gyro, "wx", "wy", "wz");
+  if (log.accel) turn(*log.accel, "ax", "ay", "az");
+  log.config.imu = ImuConfig{};
+}
+
 std::string fixed(double v, int decimals) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
@@ -92,6 +111,7 @@ TraverseLog readLog(const fs::path& dir, const ReadOptions& options, ReadReport*
   log.cmd = readOptional(dir, "cmd.csv", log.geometry, options, report);
   log.truth = readOptional(dir, "truth.csv", log.geometry, options, report);
   log.gps = readOptional(dir, "gps.csv", log.geometry, options, report);
+  applyImuMounting(log);
   return log;
 }
 

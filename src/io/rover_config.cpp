@@ -45,6 +45,20 @@ void readGyro(const YamlReader& r, const YAML::Node& root, GyroConfig& g) {
 }
 
 void readSensors(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
+  const YAML::Node imu = r.section(root, "imu", {"mounting_rpy_rad"});
+  const Vec3d imu_rpy =
+      r.vec3(imu, "imu", "mounting_rpy_rad", so3::rollPitchYaw(Quatd(c.imu.R_body_imu)));
+  if (imu_rpy.cwiseAbs().maxCoeff() > 2.0 * M_PI)
+    r.fail(imu["mounting_rpy_rad"], "imu.mounting_rpy_rad", "angles must lie in [-2 pi, 2 pi] rad");
+  if (!imu_rpy.isZero(0.0))
+    c.imu.R_body_imu =
+        so3::fromRollPitchYaw(imu_rpy.x(), imu_rpy.y(), imu_rpy.z()).toRotationMatrix();
+  // A heading gyro measures one axis: only a turn about it (yaw) keeps that axis the body's z.
+  if (c.gyro.axes != GyroAxes::kThreeAxis &&
+      (c.imu.R_body_imu.col(2) - Vec3d::UnitZ()).norm() > 1e-12)
+    r.fail(imu["mounting_rpy_rad"], "imu.mounting_rpy_rad",
+           "tilts the IMU's z axis, but gyro.axes is 'z': a heading gyro's one axis cannot be "
+           "turned into the body frame (only a yaw mounting is allowed)");
   const YAML::Node s =
       r.section(root, "sun_sensor", {"mounting_rpy_rad", "field_of_view_rad", "noise"});
   const Vec3d rpy = r.vec3(s, "sun_sensor", "mounting_rpy_rad",
@@ -271,7 +285,7 @@ RoverConfig parseRoverNode(const YAML::Node& root, const std::string& file) {
   YamlReader r(file);
   if (!root.IsMap()) throw InputError(file, 0, "expected a YAML mapping at the top level");
   r.onlyKeys(root, "",
-             {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro",
+             {"format", "name", "urdf", "joints", "turn_centre_x_m", "gravity_mps2", "gyro", "imu",
               "sun_sensor", "accelerometer", "sun", "slip_noise", "skid_steer", "odometry",
               "process", "joint_sensors", "smoother", "gps"});
   RoverConfig c;
@@ -342,6 +356,12 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
     out << YAML::Key << "rate_perturbation_rad_s2_per_sqrt_hz" << YAML::Value
         << num(*c.gyro.rate_perturbation_rad_s2_per_sqrt_hz);
   out << YAML::EndMap;
+  if (c.imu.mounted()) {  // absent = identity: files unchanged
+    out << YAML::Key << "imu" << YAML::Value << YAML::BeginMap << YAML::Key << "mounting_rpy_rad"
+        << YAML::Value;
+    vec(so3::rollPitchYaw(Quatd(c.imu.R_body_imu)));
+    out << YAML::EndMap;
+  }
   out << YAML::Key << "sun_sensor" << YAML::Value << YAML::BeginMap << YAML::Key
       << "mounting_rpy_rad" << YAML::Value;
   vec(so3::rollPitchYaw(Quatd(c.sun_sensor.R_body_sensor)));

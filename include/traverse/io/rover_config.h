@@ -51,6 +51,14 @@ struct AccelConfig {
   bool hasBias() const { return bias_sigma_mps2 > 0.0; }
 };
 
+/// The inertial measurement unit's mounting: gyro.csv and accel.csv are read in the IMU's own
+/// axes and turned into the body frame (f_body = R_body_imu f_imu) as the log is read, so every
+/// estimator sees body-frame readings (io::readLog; the log's config then says identity).
+struct ImuConfig {
+  Mat3d R_body_imu = Mat3d::Identity();  ///< `imu.mounting_rpy_rad` (IMU → body, Z-Y-X)
+  bool mounted() const { return !R_body_imu.isIdentity(0.0); }
+};
+
 /// Sun direction in the site frame: fixed, or azimuth/elevation over time.
 struct SunConfig {
   Vec3d direction_site = Vec3d(-1.0, 1.0, 1.0).normalized();  ///< K §4.1
@@ -171,6 +179,7 @@ struct RoverConfig {
   OdometryConfig odometry;
   double gravity_mps2 = 9.80665;
   GyroConfig gyro;
+  ImuConfig imu;
   SunSensorConfig sun_sensor;
   AccelConfig accel;
   SunConfig sun;
