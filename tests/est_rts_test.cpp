@@ -26,16 +26,17 @@ TEST(EstRts, StateDifferenceAndPlusAreInversesAtRandomStates) {
   std::mt19937 rng(7);
   for (int trial = 0; trial < 50; ++trial) {
     const int wheels = 4 + trial % 3;
-    const bool c = trial % 2 == 0;
-    const EkfState a = testing::randomEkfState(rng, wheels, c);
-    const EkfState b = testing::randomEkfState(rng, wheels, c);
-    const EkfVector d = ekfStateDifference(a, b, wheels, c);
-    ASSERT_EQ(d.size(), ekfStates(wheels, c ? kCommonSlipStates : 0));
-    const EkfState back = ekfStatePlus(b, d, wheels, c);
+    const bool c = trial % 2 == 0, ab = trial % 4 < 2;  // every combination of c and b_a
+    const EkfState a = testing::randomEkfState(rng, wheels, c, ab);
+    const EkfState b = testing::randomEkfState(rng, wheels, c, ab);
+    const EkfVector d = ekfStateDifference(a, b, wheels, c, ab);
+    ASSERT_EQ(d.size(), ekfStates(wheels, c ? kCommonSlipStates : 0, ab ? kAccelBiasStates : 0));
+    const EkfState back = ekfStatePlus(b, d, wheels, c, ab);
     EXPECT_LT(so3::boxminus(back.q_site_body, a.q_site_body).norm(), 1e-12);
     EXPECT_LT((back.p_site - a.p_site).norm(), 1e-12);
     EXPECT_LT((back.xi - a.xi).norm(), 1e-12);
     EXPECT_LT((back.common_slip - a.common_slip).norm(), 1e-12);
+    EXPECT_LT((back.accel_bias - a.accel_bias).norm(), 1e-12);
     // The filter's own ⊞ (the tests' reference) agrees.
     const EkfState ref = testing::ekfBoxplus(b, d);
     EXPECT_LT(so3::boxminus(ref.q_site_body, back.q_site_body).norm(), 1e-12);
