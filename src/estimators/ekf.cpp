@@ -64,6 +64,19 @@ void jacobian(const F& f, const Eigen::Matrix<double, N, 1>& x, Eigen::Matrix<do
   }
 }
 
+/// E with δθ = E (δroll, δpitch, δyaw) to first order at q (body-frame δθ, q ⊗ Exp(δθ);
+/// Z-Y-X angles): the Euler-rate → body-rate matrix.
+Mat3d eulerToBodyAngle(const Quatd& q) {
+  const Vec3d rpy = so3::rollPitchYaw(q);
+  const double sr = std::sin(rpy.x()), cr = std::cos(rpy.x());
+  const double sp = std::sin(rpy.y()), cp = std::cos(rpy.y());
+  Mat3d E;
+  E << 1, 0, -sp,      //
+      0, cr, sr * cp,  //
+      0, -sr, cr * cp;
+  return E;
+}
+
 /// The at-rest gravity model h(q ⊞ δθ, b_a + δb_a) (roll and pitch of R(q)ᵀ (0, 0, g) + b_a) at
 /// δ = 0, and its Jacobian in (δθ, δb_a) by Jets.
 Eigen::Matrix<double, 2, 6> gravityJacobian(const Quatd& q, const Vec3d& b_a, double g, Vec2d* h) {
@@ -119,7 +132,13 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   // velocity itself with O-4 and without cmd.csv; with a command it is the perturbation, zero.
   if (options.velocity == EkfOptions::VelocityModel::kAccelDriven || !has_cmd) v_p_ = init.v_body;
   P_.setZero(n_, n_);
-  P_.block<3, 3>(I::kTheta, I::kTheta) = init.attitude_sigma.cwiseAbs2().asDiagonal();
+  // The σ of roll, pitch and yaw (Z-Y-X) carried into the body-frame error δθ: small Euler
+  // increments give δθ = E (δroll, δpitch, δyaw) (E the Euler-rate → body-rate matrix), so
+  // the yaw's σ is about the site's vertical — the gravity direction, which no roll/pitch
+  // measurement sees — not about the tilted body's z.
+  P_.block<3, 3>(I::kTheta, I::kTheta) = eulerToBodyAngle(q_) *
+                                         init.attitude_sigma.cwiseAbs2().asDiagonal() *
+                                         eulerToBodyAngle(q_).transpose();
   P_.block<3, 3>(I::kRate, I::kRate)
       .diagonal()
       .setConstant(std::pow(options.initial_rate_sigma_rad_s, 2));

@@ -51,7 +51,10 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
     s.attitude_sigma.z() = log.config.sun_sensor.noise / std::sqrt(n) / std::max(sun.norm(), 0.05) +
                            0.5 * (s.attitude_sigma.x() + s.attitude_sigma.y());
   } else {
-    s.attitude_sigma.z() = M_PI;
+    // No sun anywhere in the log: nothing measures the heading, so it is the gauge — the site
+    // frame's x axis is the rover's heading at the start (yaw = InitOptions::yaw_without_sun_rad)
+    // and every yaw σ that follows is relative to it, as the position's is to the given start.
+    s.attitude_sigma.z() = 0.0;
   }
   s.q_site_body = so3::fromRollPitchYaw(roll, pitch, yaw);
   if (w && w->gyro_samples > 1) {
