@@ -27,7 +27,13 @@ data by tests/import_wvu_pathfinder_test.py):
     converted to east/north/up metres about the first fix -- the site frame (x east, y north,
     z up); checked against the authors' own ENUGPS. Per-fix 1-sigma: s5t1 carries the
     receiver's LonSigma (east), LatSigma (north), HeightSigma (up) in metres; test17run carries
-    none, and its fixes sit on the odometry time base, so RTK_SIGMA_M (estimated) is used.
+    none, so RTK_SIGMA_M (estimated) is used.
+  - GPS time: s5t1's fixes carry their own stamps (tTGPS). test17run's sit on the odometry's
+    stamps, fix k on odometry sample k, and that clock is wrong: the fixes stop moving 1.1 s
+    before the wheels and the accelerometer say the rover stops, and the lag of the GPS course
+    behind the gyro's yaw rate grows over the run. For such a file the importer fits the fixes'
+    clock, tau = t_1 + offset + rate * (t - t_1), to the wheels' speed profile
+    (fit_gps_clock) and writes the fitted stamps; the fit is printed and written in README.md.
 """
 import argparse
 import hashlib
@@ -59,6 +65,13 @@ DECIMALS_GPS = 4  # 0.1 mm; RTK spread at rest 2 mm
 RTK_SIGMA_M = (0.02, 0.02, 0.03)
 WGS84_A = 6378137.0
 WGS84_F = 1.0 / 298.257223563
+
+
+# The GPS clock fit's search: rate within +-5 %, offset at the first fix within +-3 s.
+CLOCK_RATE_RANGE = (0.95, 1.05)
+CLOCK_OFFSET_RANGE_S = (-3.0, 3.0)
+# GPS speed over fixes k - h .. k + h: 0.6 s, long enough to average the RTK noise (2 mm per fix).
+CLOCK_SPEED_HALF_SPAN = 3
 
 
 class InputProblem(Exception):
@@ -107,9 +120,66 @@ def enu_from_llh(llh):
     return (r_enu_ecef @ d).T
 
 
+def fit_gps_clock(t_gps, enu, t_odom, psi):
+    """The clock of GPS fixes whose stamps are not their own: (offset s, rate, cost, cost at
+    the identity). tau_k = t_1 + offset + rate (t_k - t_1) is when fix k was taken, on the clock
+    of the odometry (t_odom, wheel angles psi N x W, rolling forward positive). Fitted by
+    matching the GPS's horizontal speed over fixes k +- CLOCK_SPEED_HALF_SPAN with the wheels'
+    mean rate at tau_k times a free scale (the rolling radius), in the mean absolute
+    difference; a grid, then a finer grid about its best. What fixes the clock are the
+    speed's changes (starts and stops); a run that never changes speed leaves it unfixed, and
+    the cost at the identity is returned beside the best so that the caller can see it."""
+    h = CLOCK_SPEED_HALF_SPAN
+    v = np.full(len(t_gps), np.nan)
+    v[h:-h] = (np.linalg.norm(enu[2 * h:, :2] - enu[:-2 * h, :2], axis=1) /
+               (t_gps[2 * h:] - t_gps[:-2 * h]))
+    u = np.abs(np.gradient(psi.mean(axis=1), t_odom))
+
+    def costs(offsets, rate):
+        tau = t_gps[0] + offsets[:, None] + rate * (t_gps - t_gps[0])[None, :]
+        w = np.interp(tau, t_odom, u, left=np.nan, right=np.nan)
+        ok = np.isfinite(w) & np.isfinite(v)[None, :]
+        w0 = np.where(ok, w, 0.0)
+        v0 = np.where(ok, v[None, :], 0.0)
+        scale = (w0 * v0).sum(axis=1) / np.maximum((w0 * w0).sum(axis=1), 1e-300)
+        return np.abs(v0 - scale[:, None] * w0).sum(axis=1) / np.maximum(ok.sum(axis=1), 1)
+
+    def search(rates, offsets, best):
+        for rate in rates:
+            c = costs(offsets, rate)
+            i = int(np.argmin(c))
+            if best is None or c[i] < best[2]:
+                best = (float(offsets[i]), float(rate), float(c[i]))
+        return best
+
+    best = search(np.arange(CLOCK_RATE_RANGE[0], CLOCK_RATE_RANGE[1] + 1e-9, 1e-3),
+                  np.arange(CLOCK_OFFSET_RANGE_S[0], CLOCK_OFFSET_RANGE_S[1] + 1e-9, 0.02), None)
+    best = search(best[1] + np.arange(-2e-3, 2e-3 + 1e-9, 1e-4),
+                  best[0] + np.arange(-0.05, 0.05 + 1e-9, 2e-3), best)
+    identity = float(costs(np.zeros(1), 1.0)[0])
+    return best[0], best[1], best[2], identity
+
+
 def convert(raw, source):
-    """The log's streams: name -> (columns, t, values N x C, decimals of the values)."""
-    t_gps = raw["tTGPS"] if raw["tTGPS"] is not None else raw["tTodom"]
+    """The log's streams: name -> (columns, t, values N x C, decimals of the values), and a
+    note on the GPS clock (None when the fixes carry their own stamps)."""
+    llh = raw["llhGPS"]
+    enu = enu_from_llh(llh)
+    wheels = np.stack([sign * raw[var] for _, var, sign in WHEELS], axis=1)
+    clock = None
+    if raw["tTGPS"] is not None:
+        t_gps = raw["tTGPS"]
+    else:
+        t_gps = raw["tTodom"]
+        if len(t_gps) != len(enu):
+            raise InputProblem(f"{source}:0: {len(t_gps)} GPS times but {len(enu)} fixes")
+        offset, rate, cost, identity = fit_gps_clock(t_gps, enu, raw["tTodom"], wheels)
+        shift_end = offset + (rate - 1.0) * (t_gps[-1] - t_gps[0])
+        t_gps = t_gps[0] + offset + rate * (t_gps - t_gps[0])
+        clock = (f"the GPS fixes sit on the odometry's time stamps; their clock, fitted to the "
+                 f"wheels' speed profile, is {offset:+.3f} s at the first fix and runs at "
+                 f"{rate:.4f} x the odometry's ({shift_end:+.2f} s at the last fix; mean "
+                 f"|speed misfit| {cost:.4f} m/s, {identity:.4f} with the stamps as they are)")
     t0 = min(raw["tTimu"][0], raw["tTodom"][0], t_gps[0])
 
     def times(t):
@@ -120,10 +190,7 @@ def convert(raw, source):
 
     gyro = (R_BODY_IMU @ np.stack([raw["Gx"], raw["Gy"], raw["Gz"]])).T
     accel = (R_BODY_IMU @ np.stack([raw["Ax"], raw["Ay"], raw["Az"]])).T
-    wheels = np.stack([sign * raw[var] for _, var, sign in WHEELS], axis=1)
 
-    llh = raw["llhGPS"]
-    enu = enu_from_llh(llh)
     if raw["ENUGPS"].shape == enu.shape and np.abs(raw["ENUGPS"] - enu).max() > 1e-3:
         raise InputProblem(f"{source}:0: llhGPS and ENUGPS disagree by more than 1 mm")
     if raw["LatSigma"] is not None:
@@ -138,7 +205,7 @@ def convert(raw, source):
         "joints.csv": ([c for c, _, _ in WHEELS], times(raw["tTodom"]), wheels, DECIMALS_WHEEL),
         "gps.csv": (["x", "y", "z", "sx", "sy", "sz"], times(t_gps),
                     np.concatenate([enu, sigma], axis=1), DECIMALS_GPS),
-    }
+    }, clock
 
 
 def number(x, decimals):
@@ -169,7 +236,7 @@ def sha256(path):
         return hashlib.sha256(f.read()).hexdigest()
 
 
-def provenance(source):
+def provenance(source, clock):
     name = os.path.basename(source)
     return (f"# {os.path.splitext(name)[0]}: a WVU Pathfinder field run as a traverse log\n\n"
             f"Written by `scripts/import_wvu_pathfinder.py` from `{name}` (sha256 "
@@ -177,7 +244,8 @@ def provenance(source):
             "licence, `LICENSE` here, copyright Cagri Kilic 2020); provenance of the source in "
             "`datasets/real/wvu-pathfinder/README.md`. Frames, signs, units and the choices "
             "made: `docs/real-logs.md`. `gps.csv` is position-only truth (GPS fixes with "
-            "per-fix 1-sigma); the rover has no sun sensor and no commanded twist.\n")
+            "per-fix 1-sigma); the rover has no sun sensor and no commanded twist.\n" +
+            (f"\nGPS time: {clock}.\n" if clock else ""))
 
 
 def main(argv):
@@ -198,7 +266,7 @@ def main(argv):
         licence = os.path.join(os.path.dirname(os.path.abspath(args.mat)), "LICENSE")
         if not os.path.isfile(licence):
             raise InputProblem(f"{licence}:0: the source's licence must sit beside it")
-        streams = convert(read_mat(args.mat), args.mat)
+        streams, clock = convert(read_mat(args.mat), args.mat)
     except InputProblem as e:
         print(e, file=sys.stderr)
         return 2
@@ -211,7 +279,10 @@ def main(argv):
             write_atomically(os.path.join(args.outdir, f), src.read())
     with open(licence, "rb") as src:
         write_atomically(os.path.join(args.outdir, "LICENSE"), src.read())
-    write_atomically(os.path.join(args.outdir, "README.md"), provenance(args.mat).encode())
+    if clock:
+        print(f"{args.mat}: {clock}", file=sys.stderr)
+    write_atomically(os.path.join(args.outdir, "README.md"),
+                     provenance(args.mat, clock).encode())
     return 0
 
 

@@ -172,6 +172,51 @@ class ImportedLogs(unittest.TestCase):
         np.testing.assert_allclose(p[:, 1:4], enu, atol=1e-4)  # the authors' own ENU
         np.testing.assert_allclose(p[:, 4], lon_sigma, atol=5e-5)  # sx: east = longitude
 
+    def test_gps_clock_keeps_pace_with_the_gyro(self):
+        """test17run's fixes are re-timed by the importer's clock fit (to the wheels); checked
+        against the gyro, which the fit does not use: the GPS course's turn rate lags the yaw
+        rate by the same time in both halves of the drive (on the file's stamps: 0.45 s, then
+        0.85 s)."""
+        _, p = self.logs["test17run"]["gps"]
+        _, g = self.logs["test17run"]["gyro"]
+        span = 2.0
+        t = np.arange(p[0, 0] + span, p[-1, 0] - span, 0.05)
+        east = [np.interp(t + s * span / 2, p[:, 0], p[:, 1]) for s in (-1, 1)]
+        north = [np.interp(t + s * span / 2, p[:, 0], p[:, 2]) for s in (-1, 1)]
+        de, dn = east[1] - east[0], north[1] - north[0]
+        moving = np.hypot(de, dn) / span > 0.3
+        course_rate = np.gradient(np.unwrap(np.arctan2(dn, de)), t)
+        n = int(round(span / np.median(np.diff(g[:, 0]))))
+        yaw_rate = np.convolve(g[:, 3], np.ones(n) / n, mode="same")
+        idx = np.nonzero(moving)[0]
+        a, b = t[idx[0]], t[idx[-1]]
+        self.assertGreater(b - a, 40.0)
+        lags = []
+        for lo, hi in ((a, 0.5 * (a + b)), (0.5 * (a + b), b)):
+            m = moving & (t >= lo) & (t < hi)
+            candidates = np.arange(-3.0, 3.0 + 1e-9, 0.05)
+            err = [np.mean((course_rate[m] - np.interp(t[m] + c, g[:, 0], yaw_rate)) ** 2)
+                   for c in candidates]
+            lags.append(candidates[int(np.argmin(err))])
+        self.assertLess(abs(lags[1] - lags[0]), 0.2, lags)
+        self.assertLess(max(abs(x) for x in lags), 0.5, lags)
+
+    def test_gps_stops_when_the_accelerometer_does(self):
+        """The last GPS motion of test17run ends within 0.3 s of the end of the accelerometer's
+        driving vibration (on the file's stamps the fixes stop 1.1 s early)."""
+        _, p = self.logs["test17run"]["gps"]
+        _, a = self.logs["test17run"]["accel"]
+        speed = np.linalg.norm(p[6:, 1:3] - p[:-6, 1:3], axis=1) / (p[6:, 0] - p[:-6, 0])
+        t_speed = 0.5 * (p[6:, 0] + p[:-6, 0])
+        gps_stop = t_speed[np.nonzero(speed > 0.3)[0][-1]]
+        n = 50  # 0.2 s at 250 Hz
+        k = len(a) // n
+        blocks = a[:k * n, 1].reshape(k, n)
+        t_block = a[:k * n, 0].reshape(k, n).mean(axis=1)
+        vibration = blocks.std(axis=1)
+        accel_stop = t_block[np.nonzero(vibration > 0.2)[0][-1]]
+        self.assertLess(abs(gps_stop - accel_stop), 0.3, (gps_stop, accel_stop))
+
     def test_rtk_sigma_covers_the_spread_at_rest(self):
         _, p = self.logs["test17run"]["gps"]
         t_rate, rates = self.wheel_rates("test17run")
