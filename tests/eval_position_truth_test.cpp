@@ -277,5 +277,51 @@ TEST(EvalPositionTruth, FirstSpanAlignmentShowsDrift) {
   EXPECT_NEAR(metric(m, "final_error_pct_of_path"), last.norm() / 40.0 * 100, 0.5);
 }
 
+// startPinnedErrors by hand: the estimate is the truth turned by −0.2 rad about the truth's
+// start (0, 0, 0) and moved by (3, 4, 1). The first two fixes (t = 0, 0.1; 0.1 m of track)
+// pin it: c_â = estimate's start + (0.05 along the turned x), c_fix = (0.05, 0, 0), so the
+// fitted yaw is +0.2 and every error is 0. Moving fix 5 by (0, 0.3, 0) leaves the pin (only
+// fixes within 0.5 m of track pin it) and shows as e_5 = (0, −0.3, 0); a fix not used for the
+// pin or the yaw still gets its error and covariance; C_k = R P̂ Rᵀ + diag(σ² + σ_pin²).
+TEST(EvalPositionTruth, StartPinnedErrorsByHand) {
+  const double turn = -0.2;
+  const Vec3d move(3, 4, 1);
+  std::vector<Vec3d> truth, sigma;
+  for (int k = 0; k <= 20; ++k) {
+    truth.emplace_back(0.1 * k, 0.2 * (k >= 10 ? 0.1 * (k - 10) : 0.0), 0);
+    sigma.emplace_back(0.01, 0.01, 0.02);
+  }
+  FixPairs pairs;
+  for (int k = 0; k <= 20; ++k) {
+    const auto K = static_cast<std::size_t>(k);
+    pairs.t.push_back(0.1 * k);
+    pairs.antenna_hat.push_back(yawQuat(turn) * truth[K] + move);
+    pairs.fix.push_back(truth[K]);
+    pairs.sigma.push_back(sigma[K]);
+    pairs.covariance.push_back(Mat3d::Identity() * 1e-4 * k);
+  }
+  pairs.fix[15] += Vec3d(0, 0.3, 0);
+  std::vector<bool> pin(pairs.t.size(), true);
+  pin[15] = false;  // as an outlier: not in the yaw fit, but its error is still given
+  std::vector<double> ts(pairs.t);
+  const PositionTruth gps(gpsStream(ts, pairs.fix, sigma), Vec3d::Zero());
+  const StartPinnedErrors e = startPinnedErrors(pairs, gps, pin, 0.5);
+  ASSERT_TRUE(e.valid);
+  EXPECT_NEAR(e.yaw, -turn, 1e-9);
+  ASSERT_EQ(e.error.size(), pairs.t.size());
+  ASSERT_EQ(e.covariance.size(), pairs.t.size());
+  for (std::size_t k = 0; k < e.error.size(); ++k) {
+    const Vec3d expected = k == 15 ? Vec3d(0, -0.3, 0) : Vec3d::Zero();
+    EXPECT_NEAR((e.error[k] - expected).norm(), 0.0, 1e-9) << k;
+  }
+  // The pin's variance: 1/Σw over the pinning fixes (horizontal w = 2/(σx² + σy²) = 1e4).
+  const int pinned = static_cast<int>(std::round(1.0 / (e.pin_variance.x() * 1e4)));
+  EXPECT_GE(pinned, 2);
+  EXPECT_NEAR(e.pin_variance.z(), 4e-4 / pinned, 1e-12);
+  EXPECT_NEAR(e.covariance[7](0, 0), 7e-4 + 1e-4 + e.pin_variance.x(), 1e-12);
+  EXPECT_NEAR(e.covariance[7](2, 2), 7e-4 + 4e-4 + e.pin_variance.z(), 1e-12);
+  EXPECT_FALSE(startPinnedErrors(pairs, gps, std::vector<bool>(pairs.t.size(), false), 0.5).valid);
+}
+
 }  // namespace
 }  // namespace traverse::eval

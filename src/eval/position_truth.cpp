@@ -114,6 +114,47 @@ FixPairs pairWithFixes(const est::Trajectory& trajectory, const PositionTruth& t
   return out;
 }
 
+StartPinnedErrors startPinnedErrors(const FixPairs& pairs, const PositionTruth& truth,
+                                    const std::vector<bool>& pin, double start_span_m) {
+  StartPinnedErrors out;
+  const std::size_t n = pairs.t.size();
+  if (n == 0 || pin.size() != n) return out;
+  const double s0 = truth.distanceTravelled(pairs.t.front());
+  double wh_sum = 0.0, wz_sum = 0.0;
+  Vec3d ca = Vec3d::Zero(), cb = Vec3d::Zero();  // weighted start of estimate and fixes
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!pin[k] || truth.distanceTravelled(pairs.t[k]) - s0 > start_span_m) continue;
+    const double wh = 1.0 / pairs.sigma[k].head<2>().squaredNorm() * 2.0;
+    const double wz = 1.0 / (pairs.sigma[k].z() * pairs.sigma[k].z());
+    ca.head<2>() += wh * pairs.antenna_hat[k].head<2>(),
+        cb.head<2>() += wh * pairs.fix[k].head<2>();
+    ca.z() += wz * pairs.antenna_hat[k].z(), cb.z() += wz * pairs.fix[k].z();
+    wh_sum += wh, wz_sum += wz;
+  }
+  if (!(wh_sum > 0.0 && wz_sum > 0.0)) return out;
+  ca.head<2>() /= wh_sum, cb.head<2>() /= wh_sum, ca.z() /= wz_sum, cb.z() /= wz_sum;
+  double num = 0.0, den = 0.0;  // yaw about the pinned start, horizontal weights
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!pin[k]) continue;
+    const Vec3d a = pairs.antenna_hat[k] - ca, b = pairs.fix[k] - cb;
+    const double w = 2.0 / pairs.sigma[k].head<2>().squaredNorm();
+    num += w * (a.x() * b.y() - a.y() * b.x()), den += w * (a.x() * b.x() + a.y() * b.y());
+  }
+  out.valid = true;
+  out.yaw = std::atan2(num, den);
+  out.pin_variance = Vec3d(1.0 / wh_sum, 1.0 / wh_sum, 1.0 / wz_sum);
+  const Mat3d R = Eigen::AngleAxisd(out.yaw, Vec3d::UnitZ()).toRotationMatrix();
+  for (std::size_t k = 0; k < n; ++k) {
+    out.error.push_back(R * (pairs.antenna_hat[k] - ca) + cb - pairs.fix[k]);
+    if (k < pairs.covariance.size())
+      out.covariance.push_back(
+          R * pairs.covariance[k] * R.transpose() +
+          Mat3d(
+              (pairs.sigma[k].array().square() + out.pin_variance.array()).matrix().asDiagonal()));
+  }
+  return out;
+}
+
 Metrics evaluateAgainstFixes(const est::Trajectory& trajectory, const PositionTruth& truth,
                              const PositionTruthOptions& o) {
   Metrics m;
@@ -144,57 +185,29 @@ Metrics evaluateAgainstFixes(const est::Trajectory& trajectory, const PositionTr
   m.set("ate_posyaw_horizontal_m", rms(e2_h));
 
   // Consistency, in the estimate's own gauge: its covariance is that of the state relative to
-  // its start (the start pose is given), so the error it describes is the start-pinned one —
-  // translation from the fixes of the first start_span_m of track (the pin's own variance,
-  // 1 / Σ w, joins C), yaw about that point over every inlier. (Against the whole-track
-  // alignment, the error near the start is the fit's offset while the σ there is ~0.)
+  // its start (the start pose is given), so the error it describes is the start-pinned one.
+  // (Against the whole-track alignment, the error near the start is the fit's offset while
+  // the σ there is ~0.)
   if (!pairs.covariance.empty()) {
-    const double s0 = truth.distanceTravelled(pairs.t.front());
-    double wh_sum = 0.0, wz_sum = 0.0;
-    Vec3d ca = Vec3d::Zero(), cb = Vec3d::Zero();  // weighted start of estimate and fixes
-    for (std::size_t k = 0; k < n; ++k) {
-      if (!inlier[k] || truth.distanceTravelled(pairs.t[k]) - s0 > o.start_span_m) continue;
-      const double wh = 1.0 / pairs.sigma[k].head<2>().squaredNorm() * 2.0;
-      const double wz = 1.0 / (pairs.sigma[k].z() * pairs.sigma[k].z());
-      ca.head<2>() += wh * pairs.antenna_hat[k].head<2>(),
-          cb.head<2>() += wh * pairs.fix[k].head<2>();
-      ca.z() += wz * pairs.antenna_hat[k].z(), cb.z() += wz * pairs.fix[k].z();
-      wh_sum += wh, wz_sum += wz;
-    }
-    if (wh_sum > 0.0 && wz_sum > 0.0) {
-      ca.head<2>() /= wh_sum, cb.head<2>() /= wh_sum, ca.z() /= wz_sum, cb.z() /= wz_sum;
-      double num = 0.0, den = 0.0;  // yaw about the pinned start, horizontal weights
+    const StartPinnedErrors pinned = startPinnedErrors(pairs, truth, inlier, o.start_span_m);
+    if (pinned.valid) {
+      double sum_nees = 0.0, sum_e2 = 0.0, sum_trace = 0.0;
+      std::size_t count = 0, within = 0;
       for (std::size_t k = 0; k < n; ++k) {
         if (!inlier[k]) continue;
-        const Vec3d a = pairs.antenna_hat[k] - ca, b = pairs.fix[k] - cb;
-        const double w = 2.0 / pairs.sigma[k].head<2>().squaredNorm();
-        num += w * (a.x() * b.y() - a.y() * b.x()), den += w * (a.x() * b.x() + a.y() * b.y());
-      }
-      const Mat3d R = Eigen::AngleAxisd(std::atan2(num, den), Vec3d::UnitZ()).toRotationMatrix();
-      const Vec3d pin_var(1.0 / wh_sum, 1.0 / wh_sum, 1.0 / wz_sum);
-      std::vector<double> nees, trace, e2_pinned;
-      std::size_t within = 0;
-      for (std::size_t k = 0; k < n; ++k) {
-        if (!inlier[k]) continue;
-        const Vec3d e = R * (pairs.antenna_hat[k] - ca) + cb - pairs.fix[k];
-        const Mat3d C =
-            R * pairs.covariance[k] * R.transpose() +
-            Mat3d((pairs.sigma[k].array().square() + pin_var.array()).matrix().asDiagonal());
+        const Vec3d& e = pinned.error[k];
+        const Mat3d& C = pinned.covariance[k];
         const Eigen::LDLT<Mat3d> ldlt(0.5 * (C + C.transpose()));
         const double d2 = e.dot(ldlt.solve(e));
-        nees.push_back(d2);
-        trace.push_back(C.trace());
-        e2_pinned.push_back(e.squaredNorm());
+        sum_nees += d2, sum_e2 += e.squaredNorm(), sum_trace += C.trace();
+        ++count;
         within += d2 <= kThreeSigmaSquared;
       }
-      double sum_nees = 0.0, sum_e2 = 0.0, sum_trace = 0.0;
-      for (std::size_t i = 0; i < nees.size(); ++i)
-        sum_nees += nees[i], sum_e2 += e2_pinned[i], sum_trace += trace[i];
-      m.set("nees_position_mean", sum_nees / static_cast<double>(nees.size()));
+      m.set("nees_position_mean", sum_nees / static_cast<double>(count));
       m.set("nees_dof", 3.0);
       m.set("position_rmse_over_sigma", std::sqrt(sum_e2 / sum_trace));
       m.set("gps_within_3sigma_pct",
-            100.0 * static_cast<double>(within) / static_cast<double>(nees.size()));
+            100.0 * static_cast<double>(within) / static_cast<double>(count));
     }
   }
 

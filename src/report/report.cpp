@@ -203,9 +203,10 @@ p.cmd{color:#555}.warn{color:#a40}
         return "Truth: truth.csv (position and attitude); errors are estimate − truth in the "
                "site frame, envelopes ±3σ of each estimator's own covariance.";
       case TruthView::Kind::kFixes:
-        return "Truth: gps.csv (position fixes). Each estimate is aligned to the fixes by yaw "
-               "and translation (the posyaw alignment of ate_posyaw_m) and compared at its "
-               "antenna; envelopes ±3σ of the estimate's covariance plus the fix's own σ.";
+        return "Truth: gps.csv (position fixes). The views align each estimate to the fixes "
+               "by yaw and translation over the whole track (the posyaw alignment of "
+               "ate_posyaw_m); the error plots compare its antenna in its own start-pinned "
+               "gauge, with envelopes ±3σ of its covariance plus the fix's and the pin's σ.";
       case TruthView::Kind::kNone:
         break;
     }
@@ -315,20 +316,26 @@ p.cmd{color:#555}.warn{color:#a40}
           }
         }
       } else if (truth_.kind == TruthView::Kind::kFixes) {
-        const auto al = truth_.alignment.find(tr->name);
-        if (al == truth_.alignment.end()) continue;
+        // In the estimate's own gauge, as the consistency metrics: pinned at the start, so
+        // that the ±3σ envelope (σ ≈ 0 at the start) describes the error plotted.
         const eval::FixPairs pairs = eval::pairWithFixes(*tr, *truth_.fixes);
-        const Mat3d R = Eigen::AngleAxisd(al->second.yaw, Vec3d::UnitZ()).toRotationMatrix();
+        const eval::PositionTruthOptions options;
+        const std::vector<bool> all(pairs.t.size(), true);
+        const eval::RobustPosYawAlignment whole =
+            eval::alignPosYawRobust(pairs.antenna_hat, pairs.fix, pairs.sigma, all, options.huber_k,
+                                    options.max_iterations);
+        std::vector<bool> inlier(pairs.t.size());
+        for (size_t k = 0; k < pairs.t.size(); ++k)
+          inlier[k] = !whole.outlier(k, options.outlier_threshold);
+        const eval::StartPinnedErrors pinned =
+            eval::startPinnedErrors(pairs, *truth_.fixes, inlier, options.start_span_m);
+        if (!pinned.valid) continue;
         for (size_t k = 0; k < pairs.t.size(); ++k) {
-          const Vec3d e = al->second.apply(pairs.antenna_hat[k]) - pairs.fix[k];
-          const Mat3d C = k < pairs.covariance.size()
-                              ? Mat3d(R * pairs.covariance[k] * R.transpose())
-                              : Mat3d::Zero();
           a.t.push_back(pairs.t[k]);
           for (int i = 0; i < 3; ++i) {
-            a.err[i].push_back(e[i]);
-            const double s2 = pairs.sigma[k][i] * pairs.sigma[k][i];
-            a.sigma[i].push_back(tr->has_covariance ? std::sqrt(C(i, i) + s2) : NAN);
+            a.err[i].push_back(pinned.error[k][i]);
+            a.sigma[i].push_back(
+                k < pinned.covariance.size() ? std::sqrt(pinned.covariance[k](i, i)) : NAN);
           }
         }
       } else {
@@ -390,8 +397,11 @@ p.cmd{color:#555}.warn{color:#a40}
     std::string note;
     if (truth_.kind == TruthView::Kind::kFixes)
       note =
-          "<p>At the GPS fix times, antenna position after the posyaw alignment; fixes the "
-          "evaluation rejects as outliers are shown too.</p>";
+          "<p>At the GPS fix times, antenna position in the estimate's own gauge: pinned by "
+          "the fixes of the first 0.5 m of track, yaw fitted about that point (the gauge of "
+          "nees_position_mean and position_rmse_over_sigma); the ±3σ envelope is the "
+          "estimate's covariance, the fix's σ and the pin's. Fixes the evaluation rejects as "
+          "outliers are shown too.</p>";
     return note + axisPlots(positionErrors(), {"x", "y", "z"}, "m", 1.0, errors);
   }
 

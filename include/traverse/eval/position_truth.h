@@ -80,6 +80,21 @@ struct FixPairs {
 };
 FixPairs pairWithFixes(const est::Trajectory& trajectory, const PositionTruth& truth);
 
+/// The error in the estimate's own gauge, pinned at the start (the consistency figures above,
+/// and the report's error plots): translation from the fixes with pin[k] inside the first
+/// start_span_m of track (1/σ² weights per axis), yaw about that point over every fix with
+/// pin[k]. e_k = Rz(ψ)(â_k − c_â) + c_fix − fix_k and, when the pairs carry covariance,
+/// C_k = Rz(ψ) P̂_k Rz(ψ)ᵀ + diag(σ_k² + σ_pin²) — for every pair k, used or not.
+struct StartPinnedErrors {
+  bool valid = false;                  ///< false when no fix with pin[k] lies in the start span
+  double yaw = 0.0;                    ///< ψ, rad
+  Vec3d pin_variance = Vec3d::Zero();  ///< σ_pin² per site axis
+  std::vector<Vec3d> error;            ///< e_k, site frame, m
+  std::vector<Mat3d> covariance;       ///< C_k (empty when the pairs have no covariance)
+};
+StartPinnedErrors startPinnedErrors(const FixPairs& pairs, const PositionTruth& truth,
+                                    const std::vector<bool>& pin, double start_span_m);
+
 /// The metrics above for one trajectory; none when no fix falls inside its span.
 Metrics evaluateAgainstFixes(const est::Trajectory& trajectory, const PositionTruth& truth,
                              const PositionTruthOptions& options = {});
