@@ -20,28 +20,41 @@
 
 namespace traverse::smoother {
 
+namespace detail {
+inline double scalarPart(double x) {
+  return x;
+}
+template <typename J>
+double scalarPart(const J& x) {
+  return x.a;
+}
+
+/// r = L⁻¹ wrap(rp_m − h): the roll/pitch error wrapped to (−π, π] (the wrap is a constant
+/// shift, so it leaves the Jacobian alone), whitened. Shared by both gravity residuals.
+template <typename T>
+void whitenedRollPitchError(const Vec2d& roll_pitch, const Vec2<T>& h,
+                            const Eigen::Matrix2d& sqrt_info, T* r) {
+  Vec2<T> e = roll_pitch.cast<T>() - h;
+  for (int i = 0; i < 2; ++i) e[i] -= T(2.0 * M_PI * std::round(scalarPart(e[i]) / (2.0 * M_PI)));
+  Eigen::Map<Vec2<T>>{r} = sqrt_info.cast<T>() * e;
+}
+}  // namespace detail
+
 struct GravityResidual {
   GravityResidual(const Vec2d& roll_pitch, const Eigen::Matrix2d& sqrt_info)
       : roll_pitch(roll_pitch), sqrt_info(sqrt_info) {}
 
   template <typename T>
   bool operator()(const T* q, T* r) const {
-    const Vec2<T> h = sensors::gravityRollPitchPredict<T>(Quat<T>(Eigen::Map<const Quat<T>>(q)));
-    Vec2<T> e = roll_pitch.cast<T>() - h;
-    for (int i = 0; i < 2; ++i) e[i] -= T(2.0 * M_PI * std::round(scalar(e[i]) / (2.0 * M_PI)));
-    Eigen::Map<Vec2<T>>{r} = sqrt_info.cast<T>() * e;
+    detail::whitenedRollPitchError<T>(
+        roll_pitch, sensors::gravityRollPitchPredict<T>(Quat<T>(Eigen::Map<const Quat<T>>(q))),
+        sqrt_info, r);
     return true;
   }
 
   static ceres::CostFunction* Create(const Vec2d& roll_pitch, const Eigen::Matrix2d& sqrt_info) {
     return new ceres::AutoDiffCostFunction<GravityResidual, 2, 4>(
         new GravityResidual(roll_pitch, sqrt_info));
-  }
-
-  static double scalar(double x) { return x; }
-  template <typename J>
-  static double scalar(const J& x) {
-    return x.a;
   }
 
   Vec2d roll_pitch;
@@ -56,12 +69,11 @@ struct GravityBiasResidual {
 
   template <typename T>
   bool operator()(const T* q, const T* b_a, T* r) const {
-    const Vec2<T> h = sensors::gravityRollPitchPredict<T>(
-        Quat<T>(Eigen::Map<const Quat<T>>(q)), Vec3<T>(Eigen::Map<const Vec3<T>>(b_a)), gravity);
-    Vec2<T> e = roll_pitch.cast<T>() - h;
-    for (int i = 0; i < 2; ++i)
-      e[i] -= T(2.0 * M_PI * std::round(GravityResidual::scalar(e[i]) / (2.0 * M_PI)));
-    Eigen::Map<Vec2<T>>{r} = sqrt_info.cast<T>() * e;
+    detail::whitenedRollPitchError<T>(
+        roll_pitch,
+        sensors::gravityRollPitchPredict<T>(Quat<T>(Eigen::Map<const Quat<T>>(q)),
+                                            Vec3<T>(Eigen::Map<const Vec3<T>>(b_a)), gravity),
+        sqrt_info, r);
     return true;
   }
 
