@@ -43,12 +43,16 @@ double maxSpeed(const Scenario& sc) {
   return v;
 }
 
-void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
+void configureLog(const Scenario& sc, double t_end, int wheels, io::RoverConfig& c) {
   const SensorSpec& s = sc.sensors;
   c.gravity_mps2 = sc.gravity_mps2;
   c.gyro.axes = s.gyro_three_axis ? io::GyroAxes::kThreeAxis : io::GyroAxes::kHeadingOnly;
   c.gyro.noise_rad_s = std::max(s.gyro_noise_rad_s, s.gyro_quantum_rad_s / std::sqrt(12.0));
   c.gyro.bias_random_walk_rad_s_per_sqrt_s = s.gyro_bias_random_walk_rad_s_per_sqrt_s;
+  // The simulated gyro reads the true rate plus its bias and white noise: no scale factor or
+  // misalignment error, so no rate perturbation on its measured axes (O-1's ω_p there, which a
+  // real rover's rover.yaml states for its own gyro; the default is 0.1 × the rate noise).
+  c.gyro.rate_perturbation_rad_s2_per_sqrt_hz = 0.0;
   c.sun_sensor.noise = s.sun_noise;
   c.sun_sensor.field_of_view_rad = s.sun_fov_rad;
   c.sun.direction_site = s.sun_direction;
@@ -60,18 +64,39 @@ void configureLog(const Scenario& sc, double t_end, io::RoverConfig& c) {
       c.sun.azimuth_elevation.emplace_back(t, std::atan2(d.y(), d.x()), std::asin(d.z()));
     }
   }
-  // Slip noise that says what was injected. A filter assuming white slip sees correlated slip as
-  // signal, so a correlated component σ with correlation time τ is stated as the white noise of
-  // equal low-frequency power at the joint rate f: σ_w² = 2 σ² τ f. The rover's own values stay
-  // as the floor (thin-wheel and terrain-curvature model error).
+  // Slip noise that says what was injected (the rover's own values stay as the floor:
+  // thin-wheel and terrain-curvature model error). What the wheels share is stated as the
+  // common slip c (docs/model.md "Common slip"), what each wheel has alone as its rows' white
+  // noise — a shared error stated as per-wheel white noise would be averaged down by the wheel
+  // count that it does not average over:
+  //  - the body's lateral Gauss–Markov slip (σ_y, τ) is c_y as it is;
+  //  - the per-wheel longitudinal Gauss–Markov slips (σ, τ, independent) split into their
+  //    mean, shared (σ²/N, c_x), and each wheel's deviation from it (σ²(1 − 1/N)), stated as
+  //    white noise of equal low-frequency power at the joint rate f: σ_w² = 2 σ² τ f;
+  //  - the bursts (every wheel at once, amplitude A for D s, a fraction p of the time) are
+  //    shared too: in c_x with the low-frequency power they have, 2 p A² D = 2 σ_b² τ.
+  // A scenario without lateral correlated slip gets no c (both axes are needed, rover.yaml);
+  // its shared parts then stay in the white rows, as they were before c existed.
   const SlipSpec& sl = sc.slip;
   const double f = s.joints_rate_hz, tau = sl.correlation_time_s;
   const double burst_fraction = sl.burst_rate_per_m * maxSpeed(sc) * sl.burst_duration_s;
-  const double long2 =
-      sl.longitudinal_white_mps * sl.longitudinal_white_mps +
-      2 * tau * f * sl.longitudinal_correlated_mps * sl.longitudinal_correlated_mps +
-      2 * sl.burst_duration_s * f * burst_fraction * sl.burst_mps * sl.burst_mps;
-  const double lat2 = 2 * tau * f * sl.lateral_correlated_mps * sl.lateral_correlated_mps;
+  const double burst_power = 2 * sl.burst_duration_s * burst_fraction * sl.burst_mps * sl.burst_mps;
+  const double corr2 = sl.longitudinal_correlated_mps * sl.longitudinal_correlated_mps;
+  const double white2 = sl.longitudinal_white_mps * sl.longitudinal_white_mps;
+  const double n = std::max(wheels, 1);
+  double long2 = 0.0, lat2 = 0.0;
+  if (sl.lateral_correlated_mps > 0.0) {
+    auto& sn = c.slip_noise;
+    const double cx2 = corr2 / n + burst_power / (2 * tau);
+    const double cy2 = sl.lateral_correlated_mps * sl.lateral_correlated_mps;
+    sn.common_longitudinal_mps =
+        std::sqrt(sn.common_longitudinal_mps * sn.common_longitudinal_mps + cx2);
+    sn.common_lateral_mps = std::sqrt(sn.common_lateral_mps * sn.common_lateral_mps + cy2);
+    sn.common_time_constant_s = tau;
+    long2 = white2 + 2 * tau * f * corr2 * (1.0 - 1.0 / n);
+  } else {
+    long2 = white2 + 2 * tau * f * corr2 + f * burst_power;
+  }
   c.slip_noise.longitudinal_mps =
       std::sqrt(c.slip_noise.longitudinal_mps * c.slip_noise.longitudinal_mps + long2);
   c.slip_noise.lateral_mps = std::sqrt(c.slip_noise.lateral_mps * c.slip_noise.lateral_mps + lat2);
@@ -122,7 +147,7 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
                               const std::filesystem::path& rover_dir,
                               const std::vector<TruthSample>& truth, uint64_t seed) {
   const SensorSpec& s = sc.sensors;
-  configureLog(sc, truth.back().t, config);
+  configureLog(sc, truth.back().t, geo.numWheels(), config);
   io::TraverseLog log;
   log.dir = rover_dir;
   log.config = config;
