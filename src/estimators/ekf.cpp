@@ -344,12 +344,25 @@ EkfMatrix propagateCovariance(const EkfMatrix& F, double dt, const EkfMatrix& P)
 
 namespace {
 
+/// Fixed-size storage at N states, or Eigen::Dynamic sizes within the EKF's fixed capacity
+/// (no heap).
+constexpr int capacity(int n) {
+  return n == Eigen::Dynamic ? kMaxEkfStates : n;
+}
+template <int N>
+using SquareN = Eigen::Matrix<double, N, N, 0, capacity(N), capacity(N)>;
+template <int M, int N>
+using RowsN =
+    Eigen::Matrix<double, M, N, M == 1 ? Eigen::RowMajor : Eigen::ColMajor, M, capacity(N)>;
+template <int N, int M>
+using ColsN = Eigen::Matrix<double, N, M, 0, capacity(N), M>;
+
 /// Φ P Φᵀ on views of F and P at compile-time size N (the 4- and 6-wheel rovers' 19 and 21) or
 /// Eigen::Dynamic: the same operations in the same order, so the same numbers, with the loop
 /// bounds known to the compiler where they can be.
 template <int N>
 void propagateKernel(const double* F_data, double dt, double* P_data, int n) {
-  using Mat = Eigen::Matrix<double, N, N>;
+  using Mat = SquareN<N>;
   const Eigen::Map<const Mat> F(F_data, n, n);
   Eigen::Map<Mat> P(P_data, n, n);
   // Φ = I + A, A = F dt + ½ (F dt)²; F has ~50 nonzeros of 441, so A P and A (A P)ᵀ are
@@ -386,58 +399,80 @@ void propagateKernel(const double* F_data, double dt, double* P_data, int n) {
   P += D + B + E;
 }
 
-/// The expanded Joseph form on a view of P at compile-time size N (as propagateKernel).
+/// The expanded Joseph form on a view of P at compile-time size N (as propagateKernel). (Each
+/// entry as three M-dot products; folding two into Kᵢ·(S Kⱼ − HPⱼ) gave NaN on the noise-free
+/// log, where S is tiny and K huge: EstEkf.NoiseFreeFlatTraverseIsReproduced.)
 template <int N, int M>
 void josephKernel(double* P_data, int n, const EkfRows<M>& Kt_in, const EkfRows<M>& HP_in,
                   const Eigen::Matrix<double, M, M>& S) {
-  using Mat = Eigen::Matrix<double, N, N>;
-  using Rows = Eigen::Matrix<double, M, N, M == 1 ? Eigen::RowMajor : Eigen::ColMajor>;
+  using Mat = SquareN<N>;
+  using Rows = RowsN<M, N>;
   Eigen::Map<Mat> P(P_data, n, n);
   const Rows Kt = Kt_in, HP = HP_in;
   const Rows SKt = S * Kt;
   for (int j = 0; j < n; ++j) {
-    for (int i = j; i < n; ++i) {
+    for (int i = j; i < n; ++i)
       P(i, j) += Kt.col(i).dot(SKt.col(j)) - Kt.col(i).dot(HP.col(j)) - HP.col(i).dot(Kt.col(j));
-    }
   }
   P.template triangularView<Eigen::StrictlyUpper>() = P.transpose();
+}
+
+/// P Hᵀ and S = H P Hᵀ + R over H's nonzero columns, on a view of P at compile-time size N.
+template <int N, int M>
+void innovationKernel(const double* P_data, int n, const EkfRows<M>& H_in,
+                      const Eigen::Matrix<double, M, M>& R, EkfCols<M>* PHt_out,
+                      Eigen::Matrix<double, M, M>* S) {
+  using Mat = SquareN<N>;
+  const Eigen::Map<const Mat> P(P_data, n, n);
+  const RowsN<M, N> H = H_in;
+  int cols[kMaxEkfStates];
+  int k = 0;
+  for (int c = 0; c < n; ++c) {
+    if (!H.col(c).isZero(0.0)) cols[k++] = c;
+  }
+  ColsN<N, M> PHt = ColsN<N, M>::Zero(n, M);
+  for (int j = 0; j < k; ++j) PHt.noalias() += P.col(cols[j]) * H.col(cols[j]).transpose();
+  *S = R;
+  for (int j = 0; j < k; ++j) S->noalias() += H.col(cols[j]) * PHt.row(cols[j]);
+  *PHt_out = PHt;
+}
+
+/// Calls f.template operator()<N>() with N the state count n at compile time for the rovers
+/// traverse ships (4 and 6 wheels, with the common slip, a 4-wheel rover with an accelerometer
+/// bias), Eigen::Dynamic otherwise: the same operations in the same order either way.
+template <typename F>
+void withStateCount(int n, F&& f) {
+  switch (n) {
+    case ekfStates(4):
+      f.template operator()<ekfStates(4)>();
+      break;
+    case ekfStates(6):
+      f.template operator()<ekfStates(6)>();
+      break;
+    case ekfStates(6, kCommonSlipStates):
+      f.template operator()<ekfStates(6, kCommonSlipStates)>();
+      break;
+    case ekfStates(4, 0, kAccelBiasStates):  // a four-wheel rover with a real IMU
+      f.template operator()<ekfStates(4, 0, kAccelBiasStates)>();
+      break;
+    default:
+      f.template operator()<Eigen::Dynamic>();
+      break;
+  }
 }
 
 }  // namespace
 
 void propagateCovarianceInPlace(const EkfMatrix& F, double dt, EkfMatrix* P) {
   const int n = static_cast<int>(F.rows());
-  switch (n) {
-    case ekfStates(4):
-      propagateKernel<ekfStates(4)>(F.data(), dt, P->data(), n);
-      break;
-    case ekfStates(6):
-      propagateKernel<ekfStates(6)>(F.data(), dt, P->data(), n);
-      break;
-    case ekfStates(6, kCommonSlipStates):
-      propagateKernel<ekfStates(6, kCommonSlipStates)>(F.data(), dt, P->data(), n);
-      break;
-    case ekfStates(4, 0, kAccelBiasStates):  // a four-wheel rover with a real IMU
-      propagateKernel<ekfStates(4, 0, kAccelBiasStates)>(F.data(), dt, P->data(), n);
-      break;
-    default:
-      propagateKernel<Eigen::Dynamic>(F.data(), dt, P->data(), n);
-      break;
-  }
+  withStateCount(n, [&]<int N>() { propagateKernel<N>(F.data(), dt, P->data(), n); });
 }
 
 template <int M>
 void innovation(const EkfMatrix& P, const EkfRows<M>& H, const Eigen::Matrix<double, M, M>& R,
                 EkfCols<M>* PHt, Eigen::Matrix<double, M, M>* S) {
-  int cols[kMaxEkfStates];
-  int n = 0;
-  for (int c = 0; c < H.cols(); ++c) {
-    if (!H.col(c).isZero(0.0)) cols[n++] = c;
-  }
-  PHt->setZero(P.rows(), M);
-  for (int j = 0; j < n; ++j) PHt->noalias() += P.col(cols[j]) * H.col(cols[j]).transpose();
-  *S = R;
-  for (int j = 0; j < n; ++j) S->noalias() += H.col(cols[j]) * PHt->row(cols[j]);
+  const auto n = static_cast<int>(P.rows());
+  withStateCount(n, [&]<int N>() { innovationKernel<N, M>(P.data(), n, H, R, PHt, S); });
 }
 
 template <int M>
@@ -447,23 +482,7 @@ void josephUpdate(EkfMatrix* P, const EkfCols<M>& K, const EkfCols<M>& PHt,
   // products instead of two 21×21×21 ones, on the lower triangle with contiguous M-vectors.
   const EkfRows<M> Kt = K.transpose(), HP = PHt.transpose();
   const auto n = static_cast<int>(P->rows());
-  switch (n) {
-    case ekfStates(4):
-      josephKernel<ekfStates(4), M>(P->data(), n, Kt, HP, S);
-      break;
-    case ekfStates(6):
-      josephKernel<ekfStates(6), M>(P->data(), n, Kt, HP, S);
-      break;
-    case ekfStates(6, kCommonSlipStates):
-      josephKernel<ekfStates(6, kCommonSlipStates), M>(P->data(), n, Kt, HP, S);
-      break;
-    case ekfStates(4, 0, kAccelBiasStates):
-      josephKernel<ekfStates(4, 0, kAccelBiasStates), M>(P->data(), n, Kt, HP, S);
-      break;
-    default:
-      josephKernel<Eigen::Dynamic, M>(P->data(), n, Kt, HP, S);
-      break;
-  }
+  withStateCount(n, [&]<int N>() { josephKernel<N, M>(P->data(), n, Kt, HP, S); });
 }
 
 Mat3d resetJacobian(const Vec3d& dtheta) {
