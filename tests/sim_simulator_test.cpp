@@ -159,35 +159,49 @@ TEST(SimSensors, NoiseStatisticsMatchConfiguration) {
 }
 
 // The log's rover.yaml states the slip that was injected (configureLog): what the wheels share
-// as the common slip c, what each has alone as white row noise. Hand-checked for six wheels at
-// 10 Hz, τ = 5 s: per-wheel Gauss–Markov σ = 3 mm/s splits into a shared mean (σ²/6 = 1.5e-6)
-// and deviations stated white, 2 σ² (5/6) τ f = 7.5e-4; bursts of 2 cm/s for 2 s at 0.05 per m
-// at 0.05 m/s (p = 0.005) have low-frequency power 2 p A² D = 8e-6 = 2 σ_b² τ, so
-// σ_b² = 8e-7; c_y is the lateral σ. Without lateral correlated slip no c is declared and the
-// shared parts stay in the white rows (as before c existed).
+// as the common slip c, what each has alone as white row noise, each at the power it has on
+// average over the motion (slip is injected times the leg's progress |speed| / cruise: a
+// smooth-profile leg, progress 16u²(1 − u)², has mean progress² 256 B(5, 5) = 0.40635).
+// Hand-checked at cruise power for six wheels at 10 Hz, τ = 5 s: per-wheel Gauss–Markov
+// σ = 3 mm/s splits into a shared mean (σ²/6 = 1.5e-6) and deviations stated white,
+// 2 σ² (5/6) τ f = 7.5e-4; bursts of 2 cm/s for 2 s at 0.05 per m at 0.05 m/s (p = 0.005) have
+// low-frequency power 2 p A² D = 8e-6 = 2 σ_b² τ, so σ_b² = 8e-7; c_y² is the lateral σ².
+// Without lateral correlated slip no c is declared and the shared parts stay in the white rows
+// (as before c existed).
 TEST(SimSensors, SlipNoiseStatesWhatWasInjected) {
   const auto base = io::loadRoverConfig(rocky7Dir() / "rover.yaml").slip_noise;
-  Scenario sc = quiet("flat", {rest(1), straight(0.2), rest(1)});
+  Leg leg = straight(0.2);
+  leg.profile = Leg::Profile::kSmooth;
+  Scenario sc = quiet("flat", {rest(1), leg, rest(1)});
   sc.sensors.joints_rate_hz = 10;
   sc.slip.longitudinal_white_mps = 0.003;
   sc.slip.longitudinal_correlated_mps = 0.003;
   sc.slip.lateral_correlated_mps = 0.002;
   sc.slip.correlation_time_s = 5;
   sc.slip.burst_rate_per_m = 0.05, sc.slip.burst_duration_s = 2, sc.slip.burst_mps = -0.02;
-  const rover::SlipNoise sn = simulate(sc, rocky7Dir(), 1).log.config.slip_noise;
+  const Simulation sim = simulate(sc, rocky7Dir(), 1);
+  double p2 = 0.0;
+  int moving = 0;
+  for (const TruthSample& x : sim.truth) {
+    if (x.moving) p2 += x.progress * x.progress, ++moving;
+  }
+  p2 /= moving;
+  EXPECT_NEAR(p2, 256.0 * 576.0 / 362880.0, 2e-3);
+  const rover::SlipNoise& sn = sim.log.config.slip_noise;
   ASSERT_EQ(kNumWheels, 6);
-  EXPECT_NEAR(sn.common_longitudinal_mps, std::sqrt(1.5e-6 + 8e-7), 1e-12);
-  EXPECT_NEAR(sn.common_lateral_mps, 0.002, 1e-12);
+  EXPECT_NEAR(sn.common_longitudinal_mps, std::sqrt(p2 * (1.5e-6 + 8e-7)), 1e-12);
+  EXPECT_NEAR(sn.common_lateral_mps, std::sqrt(p2) * 0.002, 1e-12);
   EXPECT_EQ(sn.common_time_constant_s, 5.0);
-  EXPECT_NEAR(sn.longitudinal_mps, std::sqrt(std::pow(base.longitudinal_mps, 2) + 9e-6 + 7.5e-4),
-              1e-12);
+  EXPECT_NEAR(sn.longitudinal_mps,
+              std::sqrt(std::pow(base.longitudinal_mps, 2) + p2 * (9e-6 + 7.5e-4)), 1e-12);
   EXPECT_NEAR(sn.lateral_mps, base.lateral_mps, 1e-12);
 
   sc.slip.lateral_correlated_mps = 0.0;  // nothing shared on both axes: no c
   const rover::SlipNoise white = simulate(sc, rocky7Dir(), 1).log.config.slip_noise;
   EXPECT_FALSE(white.hasCommonSlip());
   EXPECT_NEAR(white.longitudinal_mps,
-              std::sqrt(std::pow(base.longitudinal_mps, 2) + 9e-6 + 9e-4 + 10 * 8e-6), 1e-12);
+              std::sqrt(std::pow(base.longitudinal_mps, 2) + p2 * (9e-6 + 9e-4 + 10 * 8e-6)),
+              1e-12);
   EXPECT_NEAR(white.lateral_mps, base.lateral_mps, 1e-12);
 }
 

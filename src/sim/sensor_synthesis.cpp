@@ -43,7 +43,9 @@ double maxSpeed(const Scenario& sc) {
   return v;
 }
 
-void configureLog(const Scenario& sc, double t_end, int wheels, io::RoverConfig& c) {
+void configureLog(const Scenario& sc, const std::vector<TruthSample>& truth, int wheels,
+                  io::RoverConfig& c) {
+  const double t_end = truth.back().t;
   const SensorSpec& s = sc.sensors;
   c.gravity_mps2 = sc.gravity_mps2;
   c.gyro.axes = s.gyro_three_axis ? io::GyroAxes::kThreeAxis : io::GyroAxes::kHeadingOnly;
@@ -77,18 +79,30 @@ void configureLog(const Scenario& sc, double t_end, int wheels, io::RoverConfig&
   //    shared too: in c_x with the low-frequency power they have, 2 p A² D = 2 σ_b² τ.
   // A scenario without lateral correlated slip gets no c (both axes are needed, rover.yaml);
   // its shared parts then stay in the white rows, as they were before c existed.
+  // Every slip term is injected times the leg's progress (|speed| / cruise): each is stated with
+  // the power it has on average over the motion, mean(progress²) times its cruise power (a
+  // smooth-profile leg: 0.41; ramped legs of a few metres: 0.9–1).
+  double p2_sum = 0.0;
+  int moving = 0;
+  for (const TruthSample& x : truth) {
+    if (!x.moving) continue;
+    p2_sum += x.progress * x.progress;
+    ++moving;
+  }
+  const double p2 = moving > 0 ? p2_sum / moving : 1.0;
   const SlipSpec& sl = sc.slip;
   const double f = s.joints_rate_hz, tau = sl.correlation_time_s;
   const double burst_fraction = sl.burst_rate_per_m * maxSpeed(sc) * sl.burst_duration_s;
-  const double burst_power = 2 * sl.burst_duration_s * burst_fraction * sl.burst_mps * sl.burst_mps;
-  const double corr2 = sl.longitudinal_correlated_mps * sl.longitudinal_correlated_mps;
-  const double white2 = sl.longitudinal_white_mps * sl.longitudinal_white_mps;
+  const double burst_power =
+      p2 * 2 * sl.burst_duration_s * burst_fraction * sl.burst_mps * sl.burst_mps;
+  const double corr2 = p2 * sl.longitudinal_correlated_mps * sl.longitudinal_correlated_mps;
+  const double white2 = p2 * sl.longitudinal_white_mps * sl.longitudinal_white_mps;
   const double n = std::max(wheels, 1);
   double long2 = 0.0, lat2 = 0.0;
   if (sl.lateral_correlated_mps > 0.0) {
     auto& sn = c.slip_noise;
     const double cx2 = corr2 / n + burst_power / (2 * tau);
-    const double cy2 = sl.lateral_correlated_mps * sl.lateral_correlated_mps;
+    const double cy2 = p2 * sl.lateral_correlated_mps * sl.lateral_correlated_mps;
     sn.common_longitudinal_mps =
         std::sqrt(sn.common_longitudinal_mps * sn.common_longitudinal_mps + cx2);
     sn.common_lateral_mps = std::sqrt(sn.common_lateral_mps * sn.common_lateral_mps + cy2);
@@ -147,7 +161,7 @@ io::TraverseLog synthesizeLog(const Scenario& sc, io::RoverConfig config,
                               const std::filesystem::path& rover_dir,
                               const std::vector<TruthSample>& truth, uint64_t seed) {
   const SensorSpec& s = sc.sensors;
-  configureLog(sc, truth.back().t, geo.numWheels(), config);
+  configureLog(sc, truth, geo.numWheels(), config);
   io::TraverseLog log;
   log.dir = rover_dir;
   log.config = config;

@@ -110,6 +110,7 @@ std::vector<TruthSample> solvePoses(const Scenario& sc, const rover::RoverGeomet
     TruthSample& s = truth[k];
     s.t = p.t;
     s.moving = p.moving;
+    s.progress = p.progress;
     const double step = std::abs(p.speed_mps) * dt;
     s.slip_longitudinal_mps = slip.step(p.t, p.progress, step);
     lateral_offset += slip.lateral(p.progress) * dt * Vec2d(-std::sin(p.yaw), std::cos(p.yaw));

@@ -28,6 +28,7 @@ struct TruthSample {
   Vec3d gyro_bias = Vec3d::Zero();
   Twistd cmd = Twistd::Zero();  ///< commanded body twist (path without slip)
   bool moving = false;          ///< inside a motion leg (not rest or steering)
+  double progress = 0.0;        ///< the leg's |speed| / cruise (PathSample), which scales slip
 };
 
 struct Simulation {
