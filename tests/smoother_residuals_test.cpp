@@ -27,6 +27,7 @@
 #include "support/rocky7_coords.h"
 #include "traverse/io/rover_description.h"
 #include "traverse/rover/kinematics.h"
+#include "traverse/rover/nominal_slip.h"
 #include "traverse/rover/slip_constraint.h"
 #include "traverse/sensors/gravity.h"
 #include "traverse/sensors/sun_sensor.h"
@@ -732,6 +733,69 @@ TEST(SmootherResidualSlip, JacobiansMatchNumericAndAutodiffTwin) {
     const auto J_own = reportedJacobians(owning, at, {false, false, false});
     const auto J_ref = reportedJacobians(referring, at, {false, false, false});
     for (size_t b = 0; b < J_own.size(); ++b) EXPECT_EQ(J_own[b], J_ref[b]);
+  }
+}
+
+// Without cmd.csv the nominal slip follows the state: at random joint states, steering, seeds
+// and states (with the common slip c), the residual is exactly L (t_nom(v_x + c_x, ω_z) − t)
+// (the nominal is affine in (v_x + c_x, ω_z), so linearising it about the seed is exact), and
+// its analytic Jacobians equal the Jet twin's and central differences. Also the rover-level
+// rover::nominalSlipJacobian against central differences of nominalSlip(nominalBodyTwist(…)).
+TEST(SmootherResidualSlip, NominalFollowsTheStateWithoutCmd) {
+  rover::RoverGeometry geo = rocky7();
+  std::mt19937 rng(16);
+  for (int trial = 0; trial < 4 * kTrials; ++trial) {
+    SCOPED_TRACE(trial);
+    geo.turn_centre_x = randomVector<1>(rng, 0.3)[0];  // and a skid-steer ICR offset below
+    rover::JointVectord q = rover::JointVectord::Zero(r7::kNumCoords);
+    q.head<3>() = randomVector<3>(rng, 0.3);
+    q.segment<2>(r7::kLambda1) = randomVector<2>(rng, 0.5);
+    const auto kin = rover::forwardKinematics<double>(geo, q);
+    const int i = trial % r7::kNumWheels;
+    const double radius = geo.wheels[i].radius, icr = randomVector<1>(rng, 0.4)[0];
+    const Twistd jt = rover::wheelJointTwist(kin[i], randomVector<r7::kNumCoords>(rng, 1.0));
+    const auto nominal = [&](const Vec2d& u) {
+      return rover::nominalSlip(kin[i].T_body_wheel, radius,
+                                rover::nominalBodyTwist(geo, u.x(), u.y()), jt, icr);
+    };
+    const Eigen::Matrix<double, 4, 2> N =
+        rover::nominalSlipJacobian(geo, kin[i].T_body_wheel, radius, jt, icr);
+    const Vec2d u0 = randomVector<2>(rng, 0.1);
+    Eigen::Matrix<double, 4, 2> N_num;
+    for (int c = 0; c < 2; ++c) {
+      const Vec2d h = Vec2d::Unit(c) * 1e-6;
+      N_num.col(c) = (nominal(u0 + h) - nominal(u0 - h)) / 2e-6;
+    }
+    EXPECT_LT((N - N_num).cwiseAbs().maxCoeff(), 1e-8);
+
+    const Eigen::Matrix4d L = Vec4d(250, 250, 250, 50).asDiagonal();
+    const SlipWheelData data{kin[i].T_body_wheel, radius, jt, nominal(u0), L, N, u0};
+    const SlipResidual cf(i, r7::kNumWheels, data, true);
+    const Vec3d v = randomVector<3>(rng, 0.1), w = randomVector<3>(rng, 0.1);
+    const Vec6d xi = randomVector<6>(rng, 0.3);
+    const Vec2d c = randomVector<2>(rng, 0.01);
+    const Params at{block(v), block(w), block(xi), block(c)};
+    const Vec3d v_wheels = v + Vec3d(c.x(), c.y(), 0.0);
+    const Vec4d t =
+        rover::slipConstraint<double>(kin[i].T_body_wheel, radius, jt, v_wheels, w, xi[i]);
+    const Vec4d expected = L * (nominal(Vec2d(v_wheels.x(), w.z())) - t);
+    EXPECT_LT((evaluate(cf, at) - expected).cwiseAbs().maxCoeff(), 1e-9);
+    checkCostFunctionJacobians(cf, at, {false, false, false, false});
+
+    Eigen::Matrix<double, 14, 1> x;
+    x << v, w, xi, c;
+    const auto twin = [&](const auto& s) {
+      using T = typename std::decay_t<decltype(s)>::Scalar;
+      return cf.residual<T>(Vec3<T>(s.template head<3>()), Vec3<T>(s.template segment<3>(3)),
+                            Eigen::Matrix<T, 6, 1>(s.template segment<6>(6)),
+                            Vec2<T>(s.template tail<2>()));
+    };
+    const auto J = reportedJacobians(cf, at, {false, false, false, false});
+    Eigen::Matrix<double, 4, 14> J_analytic;
+    J_analytic << J[0], J[1], J[2], J[3];
+    const Eigen::Matrix<double, 4, 14> J_jet = testing::autodiffJacobian<4, 14>(twin, x);
+    EXPECT_LT((J_analytic - J_jet).cwiseAbs().maxCoeff(),
+              1e-12 * std::max(1.0, J_jet.cwiseAbs().maxCoeff()));
   }
 }
 

@@ -541,16 +541,11 @@ Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample
   if (dt_ds) *dt_ds = J;
   if (!commanded) {
     // The nominal slip follows the estimate: r = nominal(v_x, ω_z) − t(s), so H = ∂t/∂s −
-    // ∂nominal/∂s. nominalSlip is the constraint at ξ = 0 (rows 1 and 3 kept) of the twist
-    // (v_x, −ω_z x_c, 0, 0, 0, ω_z), linear in it: its Jacobian is the ξ = 0 constraint's.
-    Eigen::Matrix<double, 4, 7> J0;
-    rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, jt, nominal_twist.head<3>(),
-                                      nominal_twist.tail<3>(), 0.0, &J0);
-    for (const int row : {1, 3}) {
-      (*H)(row, 0) -= J0(row, 0);
-      (*H)(row, 5) -= J0(row, 5) - geometry.turn_centre_x * J0(row, 1);
-    }
-    (*H)(0, 5) -= icr;  // the skid-steer longitudinal nominal ω_z · icr_offset_y
+    // ∂nominal/∂s (rover::nominalSlipJacobian, exact: the nominal is affine in (v_x, ω_z)).
+    const Eigen::Matrix<double, 4, 2> N =
+        rover::nominalSlipJacobian(geometry, js.T_body_wheel[i], radius, jt, icr);
+    H->col(0) -= N.col(0);
+    H->col(5) -= N.col(1);
   }
   return r;
 }

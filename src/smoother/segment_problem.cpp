@@ -376,11 +376,12 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
 void SegmentBuilder::addSlipResiduals(size_t k) {
   const Eigen::Index row = static_cast<Eigen::Index>(spec_.first + k);
   const est::TrajectoryNode& s = seedNode(k);
+  // Without cmd.csv the nominal follows the state (addSlipResiduals linearises it exactly).
   const Twistd nominal_twist =
       d_.has_cmd ? rover::nominalBodyTwist(d_.log.geometry, d_.cmd(row, 0), d_.cmd(row, 5))
-                 : rover::nominalBodyTwist(d_.log.geometry, s.v_body.x(), s.w_body.z());
+                 : Twistd::Zero();
   smoother::addSlipResiduals(residuals_, slip_data_, d_.log.geometry, cfg_.slip_noise, joint(k), s,
-                             nominal_twist, loss_.get(), handles_[k]);
+                             nominal_twist, loss_.get(), handles_[k], !d_.has_cmd);
 }
 
 void SegmentBuilder::addRestWindowResiduals() {

@@ -36,4 +36,24 @@ inline Vec4d nominalSlip(const Posed& T_body_wheel, double radius, const Twistd&
   return t;
 }
 
+/// ∂nominalSlip/∂(v_x, w_z) of nominalSlip(T, r, nominalBodyTwist(geometry, v_x, w_z), …): the
+/// nominal slip is affine in (v_x, w_z) — the ξ = 0 constraint is linear in the twist, and the
+/// twist (v_x, −w_z x_c, 0, 0, 0, w_z) in (v_x, w_z) — so this is exact everywhere. Used where
+/// the nominal follows the estimate (no cmd.csv: the EKF's slip H, the smoother's slip residual).
+inline Eigen::Matrix<double, 4, 2> nominalSlipJacobian(const RoverGeometry& geometry,
+                                                       const Posed& T_body_wheel, double radius,
+                                                       const Twistd& joint_twist,
+                                                       double icr_offset_y = 0.0) {
+  Eigen::Matrix<double, 4, 7> J0;  // ∂t/∂(v, ω, ξ) at ξ = 0; t is linear in (v, ω)
+  slipConstraintWithJacobian(T_body_wheel, radius, joint_twist, Vec3d::Zero(), Vec3d::Zero(), 0.0,
+                             &J0);
+  Eigen::Matrix<double, 4, 2> N = Eigen::Matrix<double, 4, 2>::Zero();
+  for (const int row : {1, 3}) {
+    N(row, 0) = J0(row, 0);
+    N(row, 1) = J0(row, 5) - geometry.turn_centre_x * J0(row, 1);
+  }
+  N(0, 1) = icr_offset_y;
+  return N;
+}
+
 }  // namespace traverse::rover

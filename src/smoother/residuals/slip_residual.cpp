@@ -11,8 +11,8 @@ namespace traverse::smoother {
 void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                       const rover::RoverGeometry& geometry, const rover::SlipNoise& noise,
                       const rover::JointSample& js, const est::TrajectoryNode& seed,
-                      const Twistd& nominal_twist, ceres::LossFunction* loss,
-                      const NodeHandles& k) {
+                      const Twistd& nominal_twist, ceres::LossFunction* loss, const NodeHandles& k,
+                      bool nominal_follows_state) {
   const int nw = geometry.numWheels();
   for (int i = 0; i < nw; ++i) {
     if (!js.wheelUsed(i)) continue;  // a wheel outage (a stuck encoder): no slip rows
@@ -23,12 +23,29 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                                       seed.w_body, seed.xi[i], &J);
     const Eigen::Matrix4d R =
         rover::slipCovariance(noise, js, i, v_wheels, seed.w_body, J.leftCols<6>());
-    const Vec4d nominal = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist,
-                                             js.joint_twist[i], geometry.wheels[i].icr_offset_y);
+    const double icr = geometry.wheels[i].icr_offset_y;
+    SlipWheelData w{js.T_body_wheel[i],
+                    radius,
+                    js.joint_twist[i],
+                    Vec4d::Zero(),
+                    sqrtInformation<4>(R, "slip"),
+                    Eigen::Matrix<double, 4, 2>::Zero(),
+                    Vec2d::Zero()};
+    if (nominal_follows_state) {
+      w.nominal_at = Vec2d(v_wheels.x(), seed.w_body.z());
+      w.nominal_jacobian =
+          rover::nominalSlipJacobian(geometry, js.T_body_wheel[i], radius, js.joint_twist[i], icr);
+      w.nominal_slip =
+          rover::nominalSlip(js.T_body_wheel[i], radius,
+                             rover::nominalBodyTwist(geometry, w.nominal_at.x(), w.nominal_at.y()),
+                             js.joint_twist[i], icr);
+    } else {
+      w.nominal_slip =
+          rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, js.joint_twist[i], icr);
+    }
     if (data.size() == data.capacity())
       throw std::logic_error("smoother: slip data would move under its cost functions");
-    data.push_back(
-        {js.T_body_wheel[i], radius, js.joint_twist[i], nominal, sqrtInformation<4>(R, "slip")});
+    data.push_back(w);
     if (k.c.size > 0)
       out.add("slip", new SlipResidual(i, nw, &data.back(), true), loss, k.v, k.w, k.xi, k.c);
     else

@@ -15,6 +15,11 @@
 // With the wheels' common slip c (rover.yaml slip_noise.common_*) the wheels roll as if the body
 // moved at v + (c_x, c_y, 0): t_i(v + c, ω, ξ_i).
 //
+// Without cmd.csv the nominal body twist is the estimate's own (v_x + c_x, ω_z), as in the EKF:
+// t_nom = t_nom(u₀) + N (u − u₀), u = (v_x + c_x, ω_z), N = rover::nominalSlipJacobian — exact,
+// the nominal being affine in u — so the residual and its Jacobian follow the state instead of
+// holding the seed's nominal (which carried the EKF's yaw-rate error into every slip row).
+//
 // Parameter blocks: v (body, m/s), ω (body, rad/s), ξ (every wheel's contact angle, rad), and
 // with the common slip c (body x, y, m/s).
 #pragma once
@@ -39,6 +44,10 @@ struct SlipWheelData {
   Twistd joint_twist = Twistd::Zero();
   Vec4d nominal_slip = Vec4d::Zero();
   Eigen::Matrix4d sqrt_info = Eigen::Matrix4d::Identity();
+  /// Without cmd.csv: ∂t_nom/∂(v_x + c_x, ω_z) and the u₀ at which nominal_slip was taken
+  /// (zero with cmd.csv: the nominal is the command's, a constant).
+  Eigen::Matrix<double, 4, 2> nominal_jacobian = Eigen::Matrix<double, 4, 2>::Zero();
+  Vec2d nominal_at = Vec2d::Zero();
 };
 
 class SlipResidual final : public ceres::CostFunction {
@@ -51,7 +60,16 @@ class SlipResidual final : public ceres::CostFunction {
       : wheel_(wheel),
         common_(common_slip),
         owned_(std::make_unique<SlipWheelData>(
-            SlipWheelData{T_body_wheel, radius, joint_twist, nominal_slip, sqrt_info})),
+            SlipWheelData{T_body_wheel, radius, joint_twist, nominal_slip, sqrt_info,
+                          Eigen::Matrix<double, 4, 2>::Zero(), Vec2d::Zero()})),
+        d_(owned_.get()) {
+    setSizes(wheels);
+  }
+  /// Keeps its own copy of `data` (a nominal that follows the state included).
+  SlipResidual(int wheel, int wheels, const SlipWheelData& data, bool common_slip)
+      : wheel_(wheel),
+        common_(common_slip),
+        owned_(std::make_unique<SlipWheelData>(data)),
         d_(owned_.get()) {
     setSizes(wheels);
   }
@@ -74,10 +92,15 @@ class SlipResidual final : public ceres::CostFunction {
     const SlipWheelData& d = *d_;
     const Vec4d t =
         rover::slipConstraintWithJacobian(d.T_body_wheel, d.radius, d.joint_twist, v, w, xi, &J);
-    Eigen::Map<Vec4d>{residuals} = d.sqrt_info * (d.nominal_slip - t);
+    const Vec4d nominal =
+        d.nominal_slip + d.nominal_jacobian * (Vec2d(v.x(), w.z()) - d.nominal_at);
+    Eigen::Map<Vec4d>{residuals} = d.sqrt_info * (nominal - t);
     if (jacobians) {
       using Rm43 = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>;
       using Rm4X = Eigen::Matrix<double, 4, Eigen::Dynamic, Eigen::RowMajor>;
+      // ∂r/∂s = L (∂t_nom/∂s − ∂t/∂s); t_nom moves with v_x (and c_x) and ω_z only.
+      J.col(0) -= d.nominal_jacobian.col(0);
+      J.col(5) -= d.nominal_jacobian.col(1);
       if (jacobians[0]) Eigen::Map<Rm43>{jacobians[0]} = -d.sqrt_info * J.leftCols<3>();
       if (jacobians[1]) Eigen::Map<Rm43>{jacobians[1]} = -d.sqrt_info * J.middleCols<3>(3);
       if (jacobians[2]) {
@@ -102,7 +125,9 @@ class SlipResidual final : public ceres::CostFunction {
     const Vec3<T> v_wheels(v.x() + c.x(), v.y() + c.y(), v.z());
     const Vec4<T> t =
         rover::slipConstraint<T>(d.T_body_wheel, d.radius, d.joint_twist, v_wheels, w, xi[wheel_]);
-    return d.sqrt_info.cast<T>() * (d.nominal_slip.cast<T>() - t);
+    const Vec2<T> u(v_wheels.x() - T(d.nominal_at.x()), w.z() - T(d.nominal_at.y()));
+    const Vec4<T> nominal = d.nominal_slip.cast<T>() + d.nominal_jacobian.cast<T>() * u;
+    return d.sqrt_info.cast<T>() * (nominal - t);
   }
   bool hasCommonSlip() const { return common_; }
 
@@ -122,12 +147,15 @@ class SlipResidual final : public ceres::CostFunction {
 /// Constraint (residual_collector.h): every wheel's slip residuals at node k, under the robust
 /// loss. Blocks v_k, ω_k, ξ_k, and c_k when the node has the common slip (k.c.size > 0). Σ is the
 /// slip noise plus the joint-rate and steering noise carried through at the seed's states
-/// (rover::slipCovariance); t_nom the nominal slip of the nominal body twist (rover::nominalSlip).
+/// (rover::slipCovariance); t_nom the nominal slip of the nominal body twist (rover::nominalSlip),
+/// the command's, or with `nominal_follows_state` (no cmd.csv) the state's own (v_x + c_x, ω_z),
+/// linearised exactly about the seed's (nominal_twist is then ignored).
 /// Each wheel's numbers are appended to `data`, which the cost functions refer to: it is reserved
 /// beforehand and must not reallocate (std::logic_error if it would).
 void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                       const rover::RoverGeometry& geometry, const rover::SlipNoise& noise,
                       const rover::JointSample& js, const est::TrajectoryNode& seed,
-                      const Twistd& nominal_twist, ceres::LossFunction* loss, const NodeHandles& k);
+                      const Twistd& nominal_twist, ceres::LossFunction* loss, const NodeHandles& k,
+                      bool nominal_follows_state = false);
 
 }  // namespace traverse::smoother
