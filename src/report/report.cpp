@@ -67,6 +67,9 @@ struct TruthView {
   std::optional<eval::PositionTruth> fixes;
   /// Per trajectory: the posyaw alignment to the fixes (identity for pose truth).
   std::map<std::string, eval::PosYawAlignment> alignment;
+  /// Per trajectory against fixes: the pairing and the start-pinned errors (the consistency
+  /// metrics' gauge, eval::startPinnedErrors), computed once with the alignment above.
+  std::map<std::string, std::pair<eval::FixPairs, eval::StartPinnedErrors>> pinned;
 };
 
 std::string table(const std::vector<std::vector<std::string>>& rows, bool header = true) {
@@ -187,9 +190,20 @@ p.cmd{color:#555}.warn{color:#a40}
         for (const est::Trajectory* tr : trajectories_) {
           const eval::FixPairs pairs = eval::pairWithFixes(*tr, *truth_.fixes);
           if (pairs.t.size() < 2) continue;
-          const std::vector<bool> use(pairs.t.size(), true);
-          truth_.alignment[tr->name] =
-              eval::alignPosYawRobust(pairs.antenna_hat, pairs.fix, pairs.sigma, use).alignment;
+          // As the evaluation: the whole-track robust alignment (the views) and its inliers,
+          // which pin the start-pinned gauge (the error plots).
+          const eval::PositionTruthOptions options;
+          const std::vector<bool> all(pairs.t.size(), true);
+          const eval::RobustPosYawAlignment whole =
+              eval::alignPosYawRobust(pairs.antenna_hat, pairs.fix, pairs.sigma, all,
+                                      options.huber_k, options.max_iterations);
+          truth_.alignment[tr->name] = whole.alignment;
+          std::vector<bool> inlier(pairs.t.size());
+          for (size_t k = 0; k < pairs.t.size(); ++k)
+            inlier[k] = !whole.outlier(k, options.outlier_threshold);
+          eval::StartPinnedErrors e =
+              eval::startPinnedErrors(pairs, *truth_.fixes, inlier, options.start_span_m);
+          truth_.pinned[tr->name] = {pairs, std::move(e)};
         }
       } catch (const std::exception&) {
         truth_.kind = TruthView::Kind::kNone;
@@ -318,18 +332,10 @@ p.cmd{color:#555}.warn{color:#a40}
       } else if (truth_.kind == TruthView::Kind::kFixes) {
         // In the estimate's own gauge, as the consistency metrics: pinned at the start, so
         // that the ±3σ envelope (σ ≈ 0 at the start) describes the error plotted.
-        const eval::FixPairs pairs = eval::pairWithFixes(*tr, *truth_.fixes);
-        const eval::PositionTruthOptions options;
-        const std::vector<bool> all(pairs.t.size(), true);
-        const eval::RobustPosYawAlignment whole =
-            eval::alignPosYawRobust(pairs.antenna_hat, pairs.fix, pairs.sigma, all, options.huber_k,
-                                    options.max_iterations);
-        std::vector<bool> inlier(pairs.t.size());
-        for (size_t k = 0; k < pairs.t.size(); ++k)
-          inlier[k] = !whole.outlier(k, options.outlier_threshold);
-        const eval::StartPinnedErrors pinned =
-            eval::startPinnedErrors(pairs, *truth_.fixes, inlier, options.start_span_m);
-        if (!pinned.valid) continue;
+        const auto it = truth_.pinned.find(tr->name);
+        if (it == truth_.pinned.end() || !it->second.second.valid) continue;
+        const eval::FixPairs& pairs = it->second.first;
+        const eval::StartPinnedErrors& pinned = it->second.second;
         for (size_t k = 0; k < pairs.t.size(); ++k) {
           a.t.push_back(pairs.t[k]);
           for (int i = 0; i < 3; ++i) {
