@@ -378,11 +378,21 @@ void propagateKernel(const double* F_data, double dt, double* P_data, int n) {
       if (F(i, j) != 0.0) nz[n_nz++] = {i, j, F(i, j) * dt};
     }
   }
+  // The nonzeros of each row, in the order above (a counting sort), so that the square visits
+  // only the pairs (a, b) with row(b) = column(a), in the same order as a scan over all b.
+  std::array<int, kMaxEkfStates + 1> row_start{};
+  for (int a = 0; a < n_nz; ++a) ++row_start[nz[a].i + 1];
+  for (int i = 0; i < n; ++i) row_start[i + 1] += row_start[i];
+  std::array<int, kMaxEkfStates * kMaxEkfStates> by_row;
+  std::array<int, kMaxEkfStates> fill;
+  std::copy_n(row_start.begin(), n, fill.begin());
+  for (int a = 0; a < n_nz; ++a) by_row[fill[nz[a].i]++] = a;
   Mat A = Mat::Zero(n, n);  // F dt + ½ (F dt)², the square over the nonzeros
   for (int a = 0; a < n_nz; ++a) {
     A(nz[a].i, nz[a].j) += nz[a].v;
-    for (int b = 0; b < n_nz; ++b) {
-      if (nz[b].i == nz[a].j) A(nz[a].i, nz[b].j) += 0.5 * nz[a].v * nz[b].v;
+    for (int r = row_start[nz[a].j]; r < row_start[nz[a].j + 1]; ++r) {
+      const Entry& b = nz[by_row[r]];
+      A(nz[a].i, b.j) += 0.5 * nz[a].v * b.v;
     }
   }
   n_nz = 0;
