@@ -442,9 +442,20 @@ void SegmentBuilder::addStartPriors() {
                   cfg_.process.contact_angle_noise_rad_per_sqrt_s,
                   cfg_.process.commonContactAngleNoise(), handles_[0]);
   if (nc_ > 0) addCommonSlipPrior(residuals_, cfg_.slip_noise, handles_[0]);
-  // Without a rest window the bias keeps the EKF's estimate as a prior.
-  if (spec_.rests.empty() || !o_.use_rest)
-    addBiasPrior(residuals_, s.bias, s.bias_sigma, handles_[0]);
+  // The gyro bias keeps the EKF's estimate at the first node as a prior, with or without rest
+  // windows: the node is the first of the segment (the start of its leading rest window, or the
+  // log's start), so the EKF has used every reading before the segment and none of it — the
+  // prior carries what the earlier rests and sun readings say, independent of this segment's
+  // residuals. A constant segment bias stands for the whole leg: its σ grows by the random walk
+  // over the segment (as b_a's below).
+  // (A seed without σ gives no prior where rest windows observe the bias.)
+  if (s.bias_sigma.minCoeff() > 0.0 || spec_.rests.empty() || !o_.use_rest) {
+    const double rw = randomWalkBias() ? 0.0 : cfg_.gyro.bias_random_walk_rad_s_per_sqrt_s;
+    const double duration = time(n_ - 1) - time(0);
+    const Vec3d sigma =
+        (s.bias_sigma.cwiseProduct(s.bias_sigma).array() + rw * rw * duration).sqrt().matrix();
+    addBiasPrior(residuals_, s.bias, sigma, handles_[0]);
+  }
   // The accelerometer's bias always does: one rest's gravity cannot tell a tilt of the attitude
   // from a tilt of b_a (both move roll and pitch alike), so without it a segment's b_a would be
   // unobserved wherever the accelerometer does not drive the velocity. Its σ grows by the
