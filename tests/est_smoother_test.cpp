@@ -444,6 +444,45 @@ TEST(Smoother, AutoBiasModelFollowsTheDeclaredDrift) {
   EXPECT_GE(random_walk, 1);
 }
 
+// Every segment's gyro bias keeps the EKF's estimate at the segment's first node as a prior
+// (docs/model.md, `addBiasPrior`): the EKF has used every reading before that node and none of
+// the segment's. On the three-leg log with a constant bias (no declared drift, so the prior's σ
+// is the EKF's own), the second segment is solved three ways: with the prior made uninformative
+// (σ 1 rad/s) it gives the segment's own b_d ± σ_d; with a prior b_d + 4σ_d ± σ_d the posterior
+// is the two's information-weighted mean, b_d + 2σ_d ± σ_d/√2 (linear-Gaussian: the bias enters
+// the gyro and rest residuals linearly).
+TEST(Smoother, BiasPriorIsTheEkfsEstimateAtTheSegmentsFirstNode) {
+  sim::Simulation s = simulate("straight-1m", kThreeLegs);
+  s.log.config.gyro.bias_random_walk_rad_s_per_sqrt_s = 0.0;
+  const pipeline::Estimates e = estimateSmoothed(s.log);
+  ASSERT_TRUE(e.smoothed.has_value());
+  ASSERT_EQ(e.smoothed->segments.size(), 3u);
+  const size_t first = e.smoothed->segments[1].first_node;
+  const auto secondSegment = [&](double bias, double sigma) {
+    est::Trajectory seed = e.ekf.trajectory;
+    seed.nodes[first].bias.z() = bias;
+    seed.nodes[first].bias_sigma.z() = sigma;
+    const SmootherResult r = smooth(s.log, e.segmentation, seed);
+    EXPECT_EQ(r.segments[1].status, SegmentStatus::kConverged);
+    EXPECT_FALSE(r.segments[1].random_walk_bias);
+    return r.segments[1];
+  };
+  const SegmentSummary own = secondSegment(e.ekf.trajectory.nodes[first].bias.z(), 1.0);
+  const double b_d = own.bias.z(), s_d = own.bias_sigma.z();
+  ASSERT_GT(s_d, 0.0);
+  ASSERT_LT(s_d, 1e-3);
+  const SegmentSummary with_prior = secondSegment(b_d + 4.0 * s_d, s_d);
+  EXPECT_NEAR(with_prior.bias.z(), b_d + 2.0 * s_d, 0.1 * s_d);
+  EXPECT_NEAR(with_prior.bias_sigma.z(), s_d / std::sqrt(2.0), 0.05 * s_d);
+  // The EKF's own estimate there, with its own σ, is a prior too: the default run's second
+  // segment lies between the segment's own estimate and the EKF's.
+  const est::TrajectoryNode& ekf_first = e.ekf.trajectory.nodes[first];
+  const double w =
+      (1.0 / (s_d * s_d)) / (1.0 / (s_d * s_d) + 1.0 / std::pow(ekf_first.bias_sigma.z(), 2));
+  EXPECT_NEAR(e.smoothed->segments[1].bias.z(), w * b_d + (1.0 - w) * ekf_first.bias.z(),
+              0.1 * s_d);
+}
+
 // Marginal covariances: symmetric positive definite at every node; the position uncertainty
 // grows through each leg (dead reckoning between the gauge at the segment's start and the rest
 // window after it).
