@@ -92,6 +92,29 @@ TEST(EvalPositionTruth, RobustAlignmentIgnoresAnOutlierItsSigmaCannotExplain) {
   EXPECT_GT(r.r_h[4], 50.0);
 }
 
+// The one whole-track fit the metrics and the report share: the circle's 3 m outlier is the only
+// fix left out, the fit is the robust alignment's, and `used` counts the rest.
+TEST(EvalPositionTruth, WholeTrackAlignmentFlagsTheOutlierOnly) {
+  CircleCase c(0.05);
+  c.truth[4] += Vec3d(3.0, 0.0, 0.0);
+  FixPairs pairs;
+  for (std::size_t k = 0; k < 12; ++k) {
+    pairs.t.push_back(static_cast<double>(k));
+    pairs.antenna_hat.push_back(c.est[k]);
+    pairs.fix.push_back(c.truth[k]);
+    pairs.sigma.push_back(c.sigma[k]);
+  }
+  const WholeTrackAlignment fit = alignWholeTrack(pairs, PositionTruthOptions{});
+  EXPECT_EQ(fit.used, 11u);
+  ASSERT_EQ(fit.inlier.size(), 12u);
+  for (std::size_t k = 0; k < 12; ++k) EXPECT_EQ(fit.inlier[k], k != 4) << k;
+  EXPECT_NEAR(fit.whole.alignment.yaw, CircleCase::kYaw, 3e-3);
+  EXPECT_LT((fit.whole.alignment.translation - c.t).norm(), 0.02);
+  PositionTruthOptions strict;
+  strict.outlier_threshold = 1e-9;  // every fix beyond it: none kept
+  EXPECT_EQ(alignWholeTrack(pairs, strict).used, 0u);
+}
+
 // s5t1's case: fixes jump by up to their own σ (2.5 m). Every residual is within k σ, so the
 // robust fit is exactly the 1/σ²-weighted least squares, and nothing is rejected.
 TEST(EvalPositionTruth, JumpsWithinTheirSigmaAreWeightedNotRejected) {

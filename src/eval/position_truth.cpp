@@ -155,21 +155,29 @@ StartPinnedErrors startPinnedErrors(const FixPairs& pairs, const PositionTruth& 
   return out;
 }
 
+WholeTrackAlignment alignWholeTrack(const FixPairs& pairs, const PositionTruthOptions& o) {
+  const std::size_t n = pairs.t.size();
+  WholeTrackAlignment out;
+  out.whole = alignPosYawRobust(pairs.antenna_hat, pairs.fix, pairs.sigma,
+                                std::vector<bool>(n, true), o.huber_k, o.max_iterations);
+  out.inlier.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    out.inlier[k] = !out.whole.outlier(k, o.outlier_threshold);
+    out.used += out.inlier[k] ? 1 : 0;
+  }
+  return out;
+}
+
 Metrics evaluateAgainstFixes(const est::Trajectory& trajectory, const PositionTruth& truth,
                              const PositionTruthOptions& o) {
   Metrics m;
   const FixPairs pairs = pairWithFixes(trajectory, truth);
   const std::size_t n = pairs.t.size();
   if (n == 0) return m;
-  const std::vector<bool> all(n, true);
-  const RobustPosYawAlignment whole = alignPosYawRobust(pairs.antenna_hat, pairs.fix, pairs.sigma,
-                                                        all, o.huber_k, o.max_iterations);
-  std::vector<bool> inlier(n);
-  std::size_t used = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    inlier[k] = !whole.outlier(k, o.outlier_threshold);
-    used += inlier[k] ? 1 : 0;
-  }
+  const WholeTrackAlignment fit = alignWholeTrack(pairs, o);
+  const RobustPosYawAlignment& whole = fit.whole;
+  const std::vector<bool>& inlier = fit.inlier;
+  const std::size_t used = fit.used;
   m.set("gps_fixes_used", static_cast<double>(used));
   m.set("gps_fixes_rejected", static_cast<double>(n - used));
   if (used == 0) return m;

@@ -193,16 +193,10 @@ p.cmd{color:#555}.warn{color:#a40}
           // As the evaluation: the whole-track robust alignment (the views) and its inliers,
           // which pin the start-pinned gauge (the error plots).
           const eval::PositionTruthOptions options;
-          const std::vector<bool> all(pairs.t.size(), true);
-          const eval::RobustPosYawAlignment whole =
-              eval::alignPosYawRobust(pairs.antenna_hat, pairs.fix, pairs.sigma, all,
-                                      options.huber_k, options.max_iterations);
-          truth_.alignment[tr->name] = whole.alignment;
-          std::vector<bool> inlier(pairs.t.size());
-          for (size_t k = 0; k < pairs.t.size(); ++k)
-            inlier[k] = !whole.outlier(k, options.outlier_threshold);
+          const eval::WholeTrackAlignment fit = eval::alignWholeTrack(pairs, options);
+          truth_.alignment[tr->name] = fit.whole.alignment;
           eval::StartPinnedErrors e =
-              eval::startPinnedErrors(pairs, *truth_.fixes, inlier, options.start_span_m);
+              eval::startPinnedErrors(pairs, *truth_.fixes, fit.inlier, options.start_span_m);
           truth_.pinned[tr->name] = {pairs, std::move(e)};
         }
       } catch (const std::exception&) {

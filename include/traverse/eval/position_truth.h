@@ -28,6 +28,7 @@
 
 #include "traverse/core/types.h"
 #include "traverse/estimators/trajectory.h"
+#include "traverse/eval/alignment.h"
 #include "traverse/eval/metrics.h"
 #include "traverse/io/log.h"
 
@@ -79,6 +80,17 @@ struct FixPairs {
   std::vector<Mat3d> covariance;  ///< P̂_pp + R̂[L]×P̂_θθ[L]×ᵀR̂ᵀ, before the alignment's rotation
 };
 FixPairs pairWithFixes(const est::Trajectory& trajectory, const PositionTruth& truth);
+
+/// The whole-track robust alignment of the pairs (alignPosYawRobust over every fix, with the
+/// options' Huber threshold) and the fixes it keeps: inlier[k] unless fix k lies beyond
+/// outlier_threshold scaled σ. The ATE, the start-pinned gauge and the report's views all use
+/// this one fit. Throws as alignPosYawRobust (fewer than two pairs, a σ not positive).
+struct WholeTrackAlignment {
+  RobustPosYawAlignment whole;
+  std::vector<bool> inlier;
+  std::size_t used = 0;  ///< inliers
+};
+WholeTrackAlignment alignWholeTrack(const FixPairs& pairs, const PositionTruthOptions& options);
 
 /// The error in the estimate's own gauge, pinned at the start (the consistency figures above,
 /// and the report's error plots): translation from the fixes with pin[k] inside the first
