@@ -442,14 +442,17 @@ void SegmentBuilder::addStartPriors() {
                   cfg_.process.contact_angle_noise_rad_per_sqrt_s,
                   cfg_.process.commonContactAngleNoise(), handles_[0]);
   if (nc_ > 0) addCommonSlipPrior(residuals_, cfg_.slip_noise, handles_[0]);
-  // The gyro bias keeps the EKF's estimate at the first node as a prior, with or without rest
-  // windows: the node is the first of the segment (the start of its leading rest window, or the
-  // log's start), so the EKF has used every reading before the segment and none of it — the
-  // prior carries what the earlier rests and sun readings say, independent of this segment's
-  // residuals. A constant segment bias stands for the whole leg: its σ grows by the random walk
-  // over the segment (as b_a's below).
-  // (A seed without σ gives no prior where rest windows observe the bias.)
-  if (s.bias_sigma.minCoeff() > 0.0 || spec_.rests.empty() || !o_.use_rest) {
+  // The gyro bias keeps the EKF's estimate at the first node as a prior: a later segment's
+  // first node is the start of its leading rest window, so the EKF has used every reading before
+  // the segment and none of it — the prior carries what the earlier rests and sun readings say,
+  // independent of this segment's residuals. Not the log's first segment where it has a rest
+  // window: the EKF's initial bias is that window's gyro mean (est::initialState), which the
+  // segment's rest residual already counts. A constant segment bias stands for the whole leg:
+  // its σ grows by the random walk over the segment (as b_a's below). Without rest windows
+  // (or with them unused) the prior is there in every segment, as the bias's only anchor. A
+  // seed without σ gives no prior where rest windows observe the bias.
+  const bool rests_observe_bias = !spec_.rests.empty() && o_.use_rest;
+  if (!rests_observe_bias || (spec_.first > 0 && s.bias_sigma.minCoeff() > 0.0)) {
     const double rw = randomWalkBias() ? 0.0 : cfg_.gyro.bias_random_walk_rad_s_per_sqrt_s;
     const double duration = time(n_ - 1) - time(0);
     const Vec3d sigma =
