@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <random>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -562,6 +563,44 @@ TEST_F(EvalCli, EvaluateWritesMetricsJson) {
   EXPECT_THAT(json, Not(HasSubstr("\"dr\"")));
   ASSERT_EQ(run("--quiet evaluate " + out_.string() + " --truth " + log_.string()), 0) << err;
   EXPECT_EQ(out, "");
+}
+
+// est::asWritten is the file's round trip in memory: attitude and covariance bit for bit what
+// readTrajectory returns after writeTrajectory (σ written, squared back; the cross terms of
+// position and attitude dropped), at random nodes; the fields the file does not carry are kept.
+TEST(EstTrajectory, AsWrittenIsTheFilesRoundTrip) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n;
+  est::Trajectory tr;
+  tr.name = "ekf";
+  tr.has_covariance = true;
+  for (int k = 0; k < 20; ++k) {
+    est::TrajectoryNode nd;
+    nd.t = 0.1 * k;
+    nd.p_site = Vec3d(n(rng), n(rng), n(rng));
+    nd.q_site_body = Quatd(n(rng), n(rng), n(rng), n(rng));  // not normalised: the file's is
+    nd.xi = rover::WheelVectord::Constant(6, 0.01 * k);
+    nd.bias = Vec3d(1e-4, 2e-4, 3e-4);
+    nd.bias_sigma = Vec3d(1e-5, 2e-5, 3e-5 * (k + 1));
+    Mat6d A;
+    for (int i = 0; i < 36; ++i) A.data()[i] = 0.1 * n(rng);
+    nd.covariance = A * A.transpose() + 1e-3 * Mat6d::Identity();
+    tr.nodes.push_back(nd);
+  }
+  const fs::path dir = fs::path(testing::TempDir()) / "as_written";
+  fs::remove_all(dir);
+  est::writeTrajectory(dir, tr);
+  const est::Trajectory back = est::readTrajectory(dir, "ekf");
+  const est::Trajectory w = est::asWritten(tr);
+  ASSERT_EQ(w.nodes.size(), back.nodes.size());
+  for (size_t k = 0; k < w.nodes.size(); ++k) {
+    EXPECT_EQ(w.nodes[k].q_site_body.coeffs(), back.nodes[k].q_site_body.coeffs()) << k;
+    EXPECT_EQ(w.nodes[k].covariance, back.nodes[k].covariance) << k;
+    EXPECT_EQ(w.nodes[k].p_site, back.nodes[k].p_site) << k;
+    EXPECT_EQ(w.nodes[k].bias_sigma, tr.nodes[k].bias_sigma) << k;  // not in the file: kept
+    EXPECT_TRUE((w.nodes[k].covariance.topRightCorner<3, 3>().isZero(0.0))) << k;
+    EXPECT_FALSE((tr.nodes[k].covariance.topRightCorner<3, 3>().isZero(0.0))) << k;
+  }
 }
 
 TEST_F(EvalCli, MissingTruthOrTrajectoriesIsBadInput) {

@@ -281,8 +281,11 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     trajectories.push_back(e.smoothed->trajectory);
   }
   est::writeSegments(std::filesystem::path(o.out_dir) / "segments.csv", e.segments);
-  const eval::MetricsReport metrics = evaluateAgainstLogTruth(log, e.segmentation, trajectories,
-                                                              diagnostics, runSummary(log, e), o);
+  // Evaluated as written, so that `traverse evaluate` on these files gives this metrics.json.
+  std::vector<est::Trajectory> written;
+  for (const est::Trajectory& tr : trajectories) written.push_back(est::asWritten(tr));
+  const eval::MetricsReport metrics =
+      evaluateAgainstLogTruth(log, e.segmentation, written, diagnostics, runSummary(log, e), o);
   if (!global.quiet && metrics.evaluated) std::cout << eval::formatMetricsTable(metrics);
   for (const std::string& w : e.ekf.warnings) {
     std::cerr << "warning: " << w << "\n";

@@ -93,6 +93,16 @@ Trajectory fromStream(const io::Stream& s, const std::string& name) {
   return tr;
 }
 
+Trajectory asWritten(const Trajectory& tr) {
+  const Trajectory back = fromStream(toStream(tr), tr.name);
+  Trajectory out = tr;
+  for (size_t k = 0; k < out.nodes.size(); ++k) {
+    out.nodes[k].q_site_body = back.nodes[k].q_site_body;
+    out.nodes[k].covariance = back.nodes[k].covariance;
+  }
+  return out;
+}
+
 void writeTrajectory(const std::filesystem::path& dir, const Trajectory& tr) {
   std::filesystem::create_directories(dir);
   io::writeStream(dir / (tr.name + ".csv"), toStream(tr));

@@ -66,6 +66,13 @@ io::Stream toStream(const Trajectory& trajectory);
 /// Inverse of toStream (covariance: the position and attitude blocks; cross terms zero).
 Trajectory fromStream(const io::Stream& stream, const std::string& name);
 
+/// The trajectory as writeTrajectory stores it and readTrajectory returns it — the attitude
+/// normalised, the covariance rebuilt from the written σ and off-diagonal terms (the
+/// position–attitude cross terms zero) — with the fields the files do not carry (bias σ, common
+/// slip, accelerometer bias) kept. Metrics computed on it are those `traverse evaluate`
+/// computes from the files, to the bit.
+Trajectory asWritten(const Trajectory& trajectory);
+
 /// Writes NAME.csv and NAME.tum (`t tx ty tz qx qy qz qw`, scalar last, readable by evo)
 /// into `dir`, each atomically.
 void writeTrajectory(const std::filesystem::path& dir, const Trajectory& trajectory);
