@@ -1002,7 +1002,7 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
   const double inf = std::numeric_limits<double>::infinity();
   const double margin = 0.25;  // rest updates keep clear of the detected boundaries
   Eigen::Index ig = 0, ij = 0, is = 0;
-  size_t rest_cursor = 0, gravity_next = 0;
+  size_t rest_cursor = 0, step_rest_cursor = 0, gravity_next = 0;
   double t = init.t;
   EkfResult result;
   result.trajectory.name = "ekf";
@@ -1018,7 +1018,17 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
     const double ts = log.sun && options.use_sun && is < log.sun->size() ? log.sun->t[is] : inf;
     const double tn = std::min({tg, tj, ts});
     if (tn == inf) break;
-    if (tn > t) ekf.propagate(tn - t, inputsAt(log, 0.5 * (t + tn), gaps, t, tn));
+    if (tn > t) {
+      EkfInputs step = inputsAt(log, 0.5 * (t + tn), gaps, t, tn);
+      // Inside a rest window (both ends, trimmed as the rest updates) the velocity is not driven
+      // by the accelerometer: its readings there reach the attitude through the gravity update
+      // once (as in the smoother), not a second time through v̇ = f + Rᵀg under zero-velocity
+      // updates.
+      if (step.has_accel && options.use_rest && restAt(seg, t, margin, step_rest_cursor) &&
+          restAt(seg, tn, margin, step_rest_cursor))
+        step.has_accel = false;
+      ekf.propagate(tn - t, step);
+    }
     t = tn;
     const EkfInputs in = inputsAt(log, t, gaps, t, t);
     const RestWindow* rest = options.use_rest ? restAt(seg, t, margin, rest_cursor) : nullptr;
