@@ -450,28 +450,25 @@ void SegmentBuilder::addStartPriors() {
   // segment's rest residual already counts. A constant segment bias stands for the whole leg:
   // its σ grows by the random walk over the segment (as b_a's below). Without rest windows
   // (or with them unused) the prior is there in every segment, as the bias's only anchor. A
-  // seed without σ gives no prior where rest windows observe the bias.
+  // seed without σ gives no prior where rest windows observe the bias. (overSegment: the σ of a
+  // constant that stands for the whole segment, a random walk of density rw over its duration.)
+  const double duration = time(n_ - 1) - time(0);
+  const auto overSegment = [&](const Vec3d& sigma, double rw) -> Vec3d {
+    return (sigma.cwiseProduct(sigma).array() + rw * rw * duration).sqrt().matrix();
+  };
   const bool rests_observe_bias = !spec_.rests.empty() && o_.use_rest;
   if (!rests_observe_bias || (spec_.first > 0 && s.bias_sigma.minCoeff() > 0.0)) {
     const double rw = randomWalkBias() ? 0.0 : cfg_.gyro.bias_random_walk_rad_s_per_sqrt_s;
-    const double duration = time(n_ - 1) - time(0);
-    const Vec3d sigma =
-        (s.bias_sigma.cwiseProduct(s.bias_sigma).array() + rw * rw * duration).sqrt().matrix();
-    addBiasPrior(residuals_, s.bias, sigma, handles_[0]);
+    addBiasPrior(residuals_, s.bias, overSegment(s.bias_sigma, rw), handles_[0]);
   }
   // The accelerometer's bias always does: one rest's gravity cannot tell a tilt of the attitude
   // from a tilt of b_a (both move roll and pitch alike), so without it a segment's b_a would be
   // unobserved wherever the accelerometer does not drive the velocity. Its σ grows by the
   // random walk over the segment (the constant b_a stands for the whole leg).
-  if (na_ > 0) {
-    const double rw = cfg_.accel.bias_random_walk_mps2_per_sqrt_s;
-    const double duration = time(n_ - 1) - time(0);
-    const Vec3d sigma =
-        (s.accel_bias_sigma.cwiseProduct(s.accel_bias_sigma).array() + rw * rw * duration)
-            .sqrt()
-            .matrix();
-    addAccelBiasPrior(residuals_, s.accel_bias, sigma, handles_[0]);
-  }
+  if (na_ > 0)
+    addAccelBiasPrior(residuals_, s.accel_bias,
+                      overSegment(s.accel_bias_sigma, cfg_.accel.bias_random_walk_mps2_per_sqrt_s),
+                      handles_[0]);
 }
 
 SegmentSolution SegmentBuilder::solve() {
