@@ -55,6 +55,38 @@ TEST(EstEkf, NoiseFreeFlatTraverseIsReproduced) {
   EXPECT_LE(e.ekf.stats.sun_rejected, 1);
 }
 
+// The initial roll, pitch, yaw and bias come from the first rest window's gravity, sun and gyro
+// mean, which the filter then counts itself (gravity update at the window's middle, sun updates,
+// zero-rate updates): it starts from the σ before those readings, so that after the window its
+// σ is the window's own, not 1/√2 of it (the readings counted twice).
+TEST(EstEkf, FirstRestIsCountedOnce) {
+  const sim::Simulation s = simulate("straight-1m", {});
+  const Segmentation seg = segment(s.log);
+  const InitialState init = initialState(s.log, seg);
+  ASSERT_TRUE(init.roll_pitch_from_gravity && init.yaw_from_sun && init.bias_from_rest);
+  ASSERT_EQ(seg.segments.front().kind, Segment::Kind::kRest);
+  const RestWindow& w = seg.rests[static_cast<size_t>(seg.segments.front().rest_index)];
+  const Estimates e = estimate(s.log);
+  const TrajectoryNode* before = nullptr;  // the last node inside the window
+  for (const TrajectoryNode& n : e.ekf.trajectory.nodes) {
+    if (n.t <= w.t_end - 0.3) before = &n;
+  }
+  ASSERT_NE(before, nullptr);
+  ASSERT_GT(before->t, 0.5 * (w.t_start + w.t_end));  // after the gravity update
+  const Vec3d att_sigma = before->covariance.bottomRightCorner<3, 3>().diagonal().cwiseSqrt();
+  for (int a = 0; a < 2; ++a) {  // roll, pitch (body ≈ level here): the window's gravity σ
+    EXPECT_GT(att_sigma[a] / init.attitude_sigma[a], 0.9) << a;
+    EXPECT_LT(att_sigma[a] / init.attitude_sigma[a], 1.1) << a;
+  }
+  // The bias: about the window's σ (the zero-rate updates skip its 0.25 s margins; the sun and
+  // slip rows at rest add a little).
+  EXPECT_GT(before->bias_sigma.z() / w.bias_sigma.z(), 0.85);  // counted twice: 1/√2 of once
+  EXPECT_LT(before->bias_sigma.z() / w.bias_sigma.z(), 1.3);
+  // And the filter's very first node has not seen the window yet.
+  const TrajectoryNode& first = e.ekf.trajectory.nodes.front();
+  EXPECT_GT(std::sqrt(first.covariance(3, 3)), 10 * init.attitude_sigma.x());
+}
+
 // rover.yaml's gyro.rate_perturbation_rad_s2_per_sqrt_hz bounds how far the EKF's body rate on
 // a measured axis may leave the bias-corrected gyro: far below the default (0.1 × the process
 // rate noise), the slip rows can no longer pull it.

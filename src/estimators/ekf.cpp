@@ -132,12 +132,23 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   // velocity itself with O-4 and without cmd.csv; with a command it is the perturbation, zero.
   if (options.velocity == EkfOptions::VelocityModel::kAccelDriven || !has_cmd) v_p_ = init.v_body;
   P_.setZero(n_, n_);
+  // The filter counts the first rest window's gravity (an update at its middle), its gyro
+  // readings (zero-rate updates) and every sun reading itself, so where the initial values came
+  // from those readings it starts from the σ behind them before any reading (InitialState):
+  // starting from the window's own σ as well would count the window twice (σ/√2 after it).
+  const bool tight_roll_pitch = init.roll_pitch_from_gravity && !options.use_rest;
+  Vec3d attitude_sigma = init.attitude_sigma;
+  if (init.roll_pitch_from_gravity && options.use_rest)
+    attitude_sigma.head<2>() = init.attitude_prior_sigma.head<2>();
+  if (init.yaw_from_sun && options.use_sun) attitude_sigma.z() = init.attitude_prior_sigma.z();
+  const Vec3d bias_sigma =
+      init.bias_from_rest && options.use_rest ? init.bias_prior_sigma : init.bias_sigma;
   // The σ of roll, pitch and yaw (Z-Y-X) carried into the body-frame error δθ: small Euler
   // increments give δθ = E (δroll, δpitch, δyaw) (E the Euler-rate → body-rate matrix), so
   // the yaw's σ is about the site's vertical — the gravity direction, which no roll/pitch
   // measurement sees — not about the tilted body's z.
   P_.block<3, 3>(I::kTheta, I::kTheta) = eulerToBodyAngle(q_) *
-                                         init.attitude_sigma.cwiseAbs2().asDiagonal() *
+                                         attitude_sigma.cwiseAbs2().asDiagonal() *
                                          eulerToBodyAngle(q_).transpose();
   P_.block<3, 3>(I::kRate, I::kRate)
       .diagonal()
@@ -159,7 +170,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
     const double vc = std::min(v0, common_sigma * common_sigma);
     P_.block(I::kXi, I::kXi, nw_, nw_).array() += (vc - v0) / nw_;
   }
-  P_.block<3, 3>(I::kBias, I::kBias) = init.bias_sigma.cwiseAbs2().asDiagonal();
+  P_.block<3, 3>(I::kBias, I::kBias) = bias_sigma.cwiseAbs2().asDiagonal();
   if (nc_ > 0) {  // the process' steady state
     const auto& sn = config.slip_noise;
     P_(kc_, kc_) = sn.common_longitudinal_mps * sn.common_longitudinal_mps;
@@ -168,7 +179,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   if (na_ > 0) {
     const Mat3d Sb = Mat3d::Identity() * std::pow(config.accel.bias_sigma_mps2, 2);
     P_.block<3, 3>(ka_, ka_) = Sb;
-    if (init.roll_pitch_from_gravity) {
+    if (tight_roll_pitch) {
       // Roll and pitch were read from gravity as if b_a were 0: h(q̂, 0) = h(q, b_a), so to
       // first order H_θ δθ = −H_b b_a (δθ = q ⊟ q̂), δθ = −M b_a with M = H_θ⁺ H_b (H_θ⁺ the
       // minimum-norm inverse: no yaw). The attitude gains M Σ_b Mᵀ, correlated with b_a.

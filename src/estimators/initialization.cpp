@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <span>
 
 #include "traverse/rover/joint_rates.h"
@@ -23,6 +24,7 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
   s.t = std::min(log.gyro.t[0], log.joints.t[0]);
   s.p_site = o.position_site;
   s.bias_sigma.setConstant(log.config.gyro.initial_bias_sigma_rad_s);
+  s.bias_prior_sigma = s.bias_sigma;
   double roll = 0.0, pitch = 0.0, yaw = o.yaw_without_sun_rad;
   const RestWindow* w = nullptr;
   if (!seg.segments.empty() && seg.segments.front().kind == Segment::Kind::kRest) {
@@ -33,36 +35,69 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
     s.attitude_sigma.head<2>() = w->roll_pitch.covariance.diagonal().cwiseSqrt();
     s.roll_pitch_from_gravity = true;
   }
+  if (w && w->gyro_samples > 1) {
+    for (int a = 0; a < 3; ++a) {
+      if (w->bias_axes[static_cast<size_t>(a)])
+        s.bias[a] = w->bias[a], s.bias_sigma[a] = w->bias_sigma[a], s.bias_from_rest = true;
+    }
+  }
   Vec2d sun = Vec2d::Zero();
   bool have_sun = false;
+  double t_sun = s.t;
   if (w && w->has_sun) {
     sun = w->mean_sun, have_sun = true;
   } else if (log.sun) {
     for (Eigen::Index k = 0; k < log.sun->size() && !have_sun; ++k) {
       if (log.sun->values(k, 2) > 0.5)
-        sun = log.sun->values.row(k).head<2>().transpose(), have_sun = true;
+        sun = log.sun->values.row(k).head<2>().transpose(), have_sun = true, t_sun = log.sun->t[k];
     }
   }
   if (have_sun) {
-    yaw = yawFromSun(sun, roll, pitch, log.config.sun_sensor.R_body_sensor,
-                     log.config.sun.directionAt(s.t));
+    s.yaw_from_sun = true;
+    // A reading after the start (no sun in the first rest: the sun behind the mast, a dropout)
+    // gives the heading at its own time: the rover may have turned since the start, so the
+    // gyro's bias-corrected z rate integrated from the start to the reading is taken off
+    // (heading change ≈ body z rotation on gentle slopes), and its σ grows by the bias's σ
+    // over that time. (Before session 22 the reading's heading was taken as the start's: a
+    // sun dropout over the first rest and leg of multi-stop gave 25° of yaw RMSE.)
+    // Across a gap in the gyro (over five mean sample periods) the turn is unknown.
+    double turned = 0.0;
+    bool gap = false;
+    const io::Stream& g = log.gyro;
+    const Eigen::Index z = g.values.cols() - 1;
+    const double period = g.size() > 1 ? (g.t[g.size() - 1] - g.t[0]) / double(g.size() - 1) : 0;
+    for (Eigen::Index k = 0; k + 1 < g.size() && g.t[k] < t_sun; ++k) {
+      const double t0 = std::max(g.t[k], s.t), t1 = std::min(g.t[k + 1], t_sun);
+      if (t1 <= t0) continue;
+      if (g.t[k + 1] - g.t[k] > 5 * period) gap = true;
+      turned += (g.values(k, z) - s.bias.z()) * (t1 - t0);
+    }
+    yaw = so3::wrapAngle(yawFromSun(sun, roll, pitch, log.config.sun_sensor.R_body_sensor,
+                                    log.config.sun.directionAt(t_sun)) -
+                         turned);
+    const double drift = s.bias_sigma.z() * (t_sun - s.t);
     // Yaw error ≈ sensor noise (averaged) over the horizontal lever |s| of the reading.
     const double n = w && w->has_sun ? w->sun_samples : 1;
-    s.attitude_sigma.z() = log.config.sun_sensor.noise / std::sqrt(n) / std::max(sun.norm(), 0.05) +
-                           0.5 * (s.attitude_sigma.x() + s.attitude_sigma.y());
+    s.attitude_sigma.z() =
+        std::hypot(log.config.sun_sensor.noise / std::sqrt(n) / std::max(sun.norm(), 0.05) +
+                       0.5 * (s.attitude_sigma.x() + s.attitude_sigma.y()),
+                   drift);
+    s.attitude_prior_sigma.z() =
+        gap ? std::numbers::pi
+            : std::min(std::hypot(s.attitude_prior_sigma.z(), drift), std::numbers::pi);
+    // A reading after the first rest is taken with the start's roll and pitch, and the body z
+    // rate integrated is the heading's rate only on level ground: on the undulating K-22 a
+    // reading half a turn later was 5° off (EstInitialAttitude.ASunReading…). Its σ is then
+    // the prior's, which the filter's updates shrink.
+    if (t_sun > s.t) s.attitude_sigma.z() = s.attitude_prior_sigma.z();
   } else {
     // No sun anywhere in the log: nothing measures the heading, so it is the gauge — the site
     // frame's x axis is the rover's heading at the start (yaw = InitOptions::yaw_without_sun_rad)
     // and every yaw σ that follows is relative to it, as the position's is to the given start.
     s.attitude_sigma.z() = 0.0;
+    s.attitude_prior_sigma.z() = 0.0;
   }
   s.q_site_body = so3::fromRollPitchYaw(roll, pitch, yaw);
-  if (w && w->gyro_samples > 1) {
-    for (int a = 0; a < 3; ++a) {
-      if (w->bias_axes[static_cast<size_t>(a)])
-        s.bias[a] = w->bias[a], s.bias_sigma[a] = w->bias_sigma[a];
-    }
-  }
   if (!w && log.joints.size() >= 3) {  // starting in motion: the speed from the wheels
     const int h = log.config.joints.rate_filter_half_window;
     const Eigen::Index m = std::min<Eigen::Index>(log.joints.size(), 2 * h + 1);

@@ -28,6 +28,15 @@ struct InitialState {
   /// Roll and pitch came from the first rest window's gravity: they are then off by what an
   /// accelerometer bias tilts gravity by (the EKF correlates them with b_a when it carries it).
   bool roll_pitch_from_gravity = false;
+  bool yaw_from_sun = false;    ///< the yaw came from a sun reading (the window's mean or the first)
+  bool bias_from_rest = false;  ///< the bias came from the first rest window's gyro mean
+  /// The σ behind the values above before any reading of the log. An estimator that counts
+  /// the readings they came from itself (the EKF: the first rest's gravity update at its middle,
+  /// its zero-rate updates, every sun reading) starts from these instead, so that each reading is
+  /// counted once: roll and pitch 0.1 rad (as without gravity), yaw 0.1 rad where a sun reading
+  /// set it (0 without sun: the heading is then the gauge), the bias rover.yaml's initial σ.
+  Vec3d attitude_prior_sigma = Vec3d::Constant(0.1);
+  Vec3d bias_prior_sigma = Vec3d::Constant(0.005);
 };
 
 InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
