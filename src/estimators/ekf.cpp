@@ -1020,6 +1020,10 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
   result.trajectory.has_covariance = true;
   result.trajectory.nodes.reserve(joints.size());
   const bool k12 = options.attitude == EkfOptions::AttitudeModel::kGyroMeasurement;
+  // The filter starts at the first joint sample (InitialState::t): gyro and sun readings before
+  // it are not used.
+  while (ig < log.gyro.size() && log.gyro.t[ig] < init.t) ++ig;
+  while (log.sun && is < log.sun->size() && log.sun->t[is] < init.t) ++is;
   if (options.rts) ekf.startRecording();
   for (;;) {
     while (log.sun && is < log.sun->size() && log.sun->values(is, 2) < 0.5)

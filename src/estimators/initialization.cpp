@@ -21,14 +21,23 @@ double yawFromSun(const Vec2d& s_m, double roll, double pitch, const Mat3d& R_bo
 InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
                           const InitOptions& o) {
   InitialState s;
-  s.t = std::min(log.gyro.t[0], log.joints.t[0]);
+  // The estimates start at the first joint sample (every estimator writes a node per joint
+  // sample). Readings of other streams before it are not used: before the joints the wheels say
+  // nothing, and an accelerometer integrated over that stretch with the tilt not yet measured
+  // drifted metres (joints.csv beginning 10 s late on multi-stop: the EKF's first node 3.6 m
+  // off, and the smoother's whole track with it, which the evaluation's start alignment hid).
+  // The given position is the position there. (A gyro that begins later is a gyro gap.)
+  s.t = log.joints.t[0];
   s.p_site = o.position_site;
   s.bias_sigma.setConstant(log.config.gyro.initial_bias_sigma_rad_s);
   s.bias_prior_sigma = s.bias_sigma;
   double roll = 0.0, pitch = 0.0, yaw = o.yaw_without_sun_rad;
   const RestWindow* w = nullptr;
-  if (!seg.segments.empty() && seg.segments.front().kind == Segment::Kind::kRest) {
-    w = &seg.rests[static_cast<size_t>(seg.segments.front().rest_index)];
+  // The segment holding the start (the first, unless a stream began late).
+  const auto first = std::find_if(seg.segments.begin(), seg.segments.end(),
+                                  [&](const Segment& g) { return g.t_end > s.t; });
+  if (first != seg.segments.end() && first->kind == Segment::Kind::kRest) {
+    w = &seg.rests[static_cast<size_t>(first->rest_index)];
   }
   if (w && w->has_gravity) {
     roll = w->roll_pitch.roll_pitch.x(), pitch = w->roll_pitch.roll_pitch.y();
@@ -98,13 +107,19 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
     s.attitude_prior_sigma.z() = 0.0;
   }
   s.q_site_body = so3::fromRollPitchYaw(roll, pitch, yaw);
-  if (!w && log.joints.size() >= 3) {  // starting in motion: the speed from the wheels
+  // Starting in motion: the speed from the wheels at the first joint sample from the start.
+  const io::Stream& j = log.joints;
+  const Eigen::Index j0 = std::lower_bound(j.t.data(), j.t.data() + j.size(), s.t) - j.t.data();
+  if (!w && j.size() - j0 >= 3) {
     const int h = log.config.joints.rate_filter_half_window;
-    const Eigen::Index m = std::min<Eigen::Index>(log.joints.size(), 2 * h + 1);
+    const Eigen::Index m = std::min<Eigen::Index>(j.size() - j0, 2 * h + 1);
     const Eigen::MatrixXd rates =
-        rover::jointRates(std::span<const double>(log.joints.t.data(), static_cast<size_t>(m)),
-                          log.joints.values.topRows(m), {h});
-    const double wz = log.gyro.values(0, log.gyro.values.cols() - 1) - s.bias.z();
+        rover::jointRates(std::span<const double>(j.t.data() + j0, static_cast<size_t>(m)),
+                          j.values.middleRows(j0, m), {h});
+    const io::Stream& g = log.gyro;
+    const Eigen::Index g0 = std::min<Eigen::Index>(
+        std::lower_bound(g.t.data(), g.t.data() + g.size(), s.t) - g.t.data(), g.size() - 1);
+    const double wz = g.values(g0, g.values.cols() - 1) - s.bias.z();
     double v = 0.0;
     for (const rover::Wheel& wh : log.geometry.wheels)
       v += wh.radius * rates(0, wh.coord) + wz * wh.icr_offset_y;
