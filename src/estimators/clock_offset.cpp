@@ -156,11 +156,22 @@ ClockOffset estimateJointsClockOffset(const io::TraverseLog& log, const ClockOff
     p.inertial.x = highPass(p.inertial.t, x, half);
     if (p.t_wheel.size() >= 10) pairs.push_back(std::move(p));
   }
-  // Lags a quarter of the joint interval apart.
+  // Lags a quarter of the joint interval apart, over ±max_lag_s — and around −d as well when
+  // joints.csv begins and ends d later than gyro.csv (to two joint intervals) with |d| beyond
+  // that range: the stamps themselves then point at an offset that large (a 5 s offset on
+  // multi-stop gave the smoother a 269 m final error before).
   const double step = 0.25 * dt;
-  const int nl = static_cast<int>(std::floor(o.max_lag_s / step));
+  const io::Stream& g = log.gyro;
+  const double d0 = log.joints.t[0] - g.t[0];
+  const double d1 = log.joints.t[log.joints.size() - 1] - g.t[g.size() - 1];
+  double lo = -o.max_lag_s, hi = o.max_lag_s;
+  if (std::abs(d0 - d1) <= 2 * dt && std::abs(d0) > o.max_lag_s) {
+    lo = std::min(lo, -d0 - o.max_lag_s), hi = std::max(hi, -d0 + o.max_lag_s);
+  }
+  const int l_lo = static_cast<int>(std::ceil(lo / step)), l_hi = static_cast<int>(hi / step);
   std::vector<double> lags;
-  for (int l = -nl; l <= nl; ++l) lags.push_back(l * step);
+  for (int l = l_lo; l <= l_hi; ++l) lags.push_back(l * step);
+  const auto zero = static_cast<size_t>(-l_lo);  // the index of lag 0
   // The signals that hold motion, each weighted by its own peak correlation squared.
   std::vector<double> rho(lags.size(), 0.0);
   double weight = 0.0;
@@ -178,7 +189,7 @@ ClockOffset estimateJointsClockOffset(const io::TraverseLog& log, const ClockOff
   size_t k = 0;
   out.offset_s = -peakLag(rho, lags, &k);  // joints late by d: the inertial signal at t − d
   out.correlation = rho[k];
-  out.correlation_at_zero = rho[static_cast<size_t>(nl)];
+  out.correlation_at_zero = rho[zero];
   const bool interior = k > 0 && k + 1 < lags.size();
   const double n_eff = (tw.back() - tw.front()) / o.correlation_time_s;
   out.significant = interior && out.correlation >= o.min_correlation &&
