@@ -188,7 +188,8 @@ TEST(EstAccelBias, InitialAttitudeIsCorrelatedWithTheBiasWhenReadFromGravity) {
     InitialState plain = init;
     plain.roll_pitch_from_gravity = false;
     // Without rest updates the filter does not count the window again, so it keeps the window's
-    // σ and the correlation (with them it starts from the σ before the window: FirstRest…).
+    // σ and the correlation (with them it starts roll and pitch from the σ before the window and
+    // applies its gravity: EstEkf.FirstRestIsCountedOnce).
     EkfOptions no_rest;
     no_rest.use_rest = false;
     const Ekf ekf(cfg, testing::rocky7(), no_rest, init, true, true);

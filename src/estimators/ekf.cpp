@@ -64,19 +64,6 @@ void jacobian(const F& f, const Eigen::Matrix<double, N, 1>& x, Eigen::Matrix<do
   }
 }
 
-/// E with δθ = E (δroll, δpitch, δyaw) to first order at q (body-frame δθ, q ⊗ Exp(δθ);
-/// Z-Y-X angles): the Euler-rate → body-rate matrix.
-Mat3d eulerToBodyAngle(const Quatd& q) {
-  const Vec3d rpy = so3::rollPitchYaw(q);
-  const double sr = std::sin(rpy.x()), cr = std::cos(rpy.x());
-  const double sp = std::sin(rpy.y()), cp = std::cos(rpy.y());
-  Mat3d E;
-  E << 1, 0, -sp,      //
-      0, cr, sr * cp,  //
-      0, -sr, cr * cp;
-  return E;
-}
-
 /// The at-rest gravity model h(q ⊞ δθ, b_a + δb_a) (roll and pitch of R(q)ᵀ (0, 0, g) + b_a) at
 /// δ = 0, and its Jacobian in (δθ, δb_a) by Jets.
 Eigen::Matrix<double, 2, 6> gravityJacobian(const Quatd& q, const Vec3d& b_a, double g, Vec2d* h) {
@@ -132,24 +119,21 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   // velocity itself with O-4 and without cmd.csv; with a command it is the perturbation, zero.
   if (options.velocity == EkfOptions::VelocityModel::kAccelDriven || !has_cmd) v_p_ = init.v_body;
   P_.setZero(n_, n_);
-  // The filter counts the first rest window's gravity (an update at its middle), its gyro
-  // readings (zero-rate updates) and every sun reading itself, so where the initial values came
-  // from those readings it starts from the σ behind them before any reading (InitialState):
-  // starting from the window's own σ as well would count the window twice (σ/√2 after it).
-  const bool tight_roll_pitch = init.roll_pitch_from_gravity && !options.use_rest;
+  // The initial values and σ are the first rest window's (InitialState), whose mean-sun heading
+  // and rest bias the filter does not apply again (runEkf), so each reading counts once. Roll and
+  // pitch are the exception: between gravity updates they drift by the unmeasured body rates, so
+  // the window's gravity is applied at its middle as every rest's, and the filter starts from
+  // the σ before it (0.1 rad) instead — the window's values, counted once.
+  const bool gravity_again = init.roll_pitch_from_gravity && options.use_rest;
   Vec3d attitude_sigma = init.attitude_sigma;
-  if (init.roll_pitch_from_gravity && options.use_rest)
-    attitude_sigma.head<2>() = init.attitude_prior_sigma.head<2>();
-  if (init.yaw_from_sun && options.use_sun) attitude_sigma.z() = init.attitude_prior_sigma.z();
-  const Vec3d bias_sigma =
-      init.bias_from_rest && options.use_rest ? init.bias_prior_sigma : init.bias_sigma;
+  if (gravity_again) attitude_sigma.head<2>() = init.attitude_prior_sigma.head<2>();
   // The σ of roll, pitch and yaw (Z-Y-X) carried into the body-frame error δθ: small Euler
   // increments give δθ = E (δroll, δpitch, δyaw) (E the Euler-rate → body-rate matrix), so
   // the yaw's σ is about the site's vertical — the gravity direction, which no roll/pitch
   // measurement sees — not about the tilted body's z.
-  P_.block<3, 3>(I::kTheta, I::kTheta) = eulerToBodyAngle(q_) *
+  P_.block<3, 3>(I::kTheta, I::kTheta) = so3::eulerRateToBodyRate(q_) *
                                          attitude_sigma.cwiseAbs2().asDiagonal() *
-                                         eulerToBodyAngle(q_).transpose();
+                                         so3::eulerRateToBodyRate(q_).transpose();
   P_.block<3, 3>(I::kRate, I::kRate)
       .diagonal()
       .setConstant(std::pow(options.initial_rate_sigma_rad_s, 2));
@@ -170,7 +154,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
     const double vc = std::min(v0, common_sigma * common_sigma);
     P_.block(I::kXi, I::kXi, nw_, nw_).array() += (vc - v0) / nw_;
   }
-  P_.block<3, 3>(I::kBias, I::kBias) = bias_sigma.cwiseAbs2().asDiagonal();
+  P_.block<3, 3>(I::kBias, I::kBias) = init.bias_sigma.cwiseAbs2().asDiagonal();
   if (nc_ > 0) {  // the process' steady state
     const auto& sn = config.slip_noise;
     P_(kc_, kc_) = sn.common_longitudinal_mps * sn.common_longitudinal_mps;
@@ -179,7 +163,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
   if (na_ > 0) {
     const Mat3d Sb = Mat3d::Identity() * std::pow(config.accel.bias_sigma_mps2, 2);
     P_.block<3, 3>(ka_, ka_) = Sb;
-    if (tight_roll_pitch) {
+    if (init.roll_pitch_from_gravity && !gravity_again) {
       // Roll and pitch were read from gravity as if b_a were 0: h(q̂, 0) = h(q, b_a), so to
       // first order H_θ δθ = −H_b b_a (δθ = q ⊟ q̂), δθ = −M b_a with M = H_θ⁺ H_b (H_θ⁺ the
       // minimum-norm inverse: no yaw). The attitude gains M Σ_b Mᵀ, correlated with b_a.
@@ -1020,6 +1004,11 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
   result.trajectory.has_covariance = true;
   result.trajectory.nodes.reserve(joints.size());
   const bool k12 = options.attitude == EkfOptions::AttitudeModel::kGyroMeasurement;
+  // The rest window the initial mean-sun yaw and bias came from: its sun readings and rest-bias
+  // updates are in the initial state already and are not applied again (counted twice, the σ
+  // after it was 1/√2 of the window's). Its gravity is: the filter starts from the σ before it.
+  const RestWindow* init_rest =
+      init.rest_index >= 0 ? &seg.rests[static_cast<size_t>(init.rest_index)] : nullptr;
   // The filter starts at the first joint sample (InitialState::t): gyro and sun readings before
   // it are not used.
   while (ig < log.gyro.size() && log.gyro.t[ig] < init.t) ++ig;
@@ -1051,12 +1040,14 @@ EkfResult runEkfWith(const io::TraverseLog& log, const Segmentation& seg, const 
       if (k12) ekf.updateGyro(in.gyro);  // K-12: at rest this observes the bias by itself
       if (rest) {
         ekf.updateZeroRate(in);
-        if (!k12) ekf.updateRestBias(in);
+        if (!k12 && !(init.bias_from_rest && rest == init_rest)) ekf.updateRestBias(in);
       }
       ++ig;
     }
     if (ts == t) {
-      ekf.updateSun(log.sun->values.row(is).head<2>().transpose(), log.config.sun.directionAt(t));
+      if (!(init.yaw_from_rest_sun && init_rest && t >= init_rest->t_start &&
+            t <= init_rest->t_end))
+        ekf.updateSun(log.sun->values.row(is).head<2>().transpose(), log.config.sun.directionAt(t));
       ++is;
     }
     if (tj == t) {

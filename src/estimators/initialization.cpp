@@ -38,6 +38,7 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
                                   [&](const Segment& g) { return g.t_end > s.t; });
   if (first != seg.segments.end() && first->kind == Segment::Kind::kRest) {
     w = &seg.rests[static_cast<size_t>(first->rest_index)];
+    s.rest_index = first->rest_index;
   }
   if (w && w->has_gravity) {
     roll = w->roll_pitch.roll_pitch.x(), pitch = w->roll_pitch.roll_pitch.y();
@@ -54,7 +55,7 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
   bool have_sun = false;
   double t_sun = s.t;
   if (w && w->has_sun) {
-    sun = w->mean_sun, have_sun = true;
+    sun = w->mean_sun, have_sun = true, s.yaw_from_rest_sun = true;
   } else if (log.sun) {
     for (Eigen::Index k = 0; k < log.sun->size() && !have_sun; ++k) {
       if (log.sun->values(k, 2) > 0.5)

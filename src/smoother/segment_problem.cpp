@@ -435,8 +435,23 @@ void SegmentBuilder::addSunResiduals(size_t k) {
 
 void SegmentBuilder::addStartPriors() {
   const est::TrajectoryNode& s = seedNode(0);
-  addStartPrior(residuals_, s.q_site_body, s.p_site, o_.start_position_sigma_m,
-                s.covariance.bottomRightCorner<3, 3>(), handles_[0]);
+  // The log's first segment: the EKF's first node carries the leading rest's gravity (roll,
+  // pitch) and mean sun heading (est::InitialState), which this segment's own gravity and sun
+  // residuals count again — so there the prior is widened by 0.1 rad (as without them) along
+  // what those residuals measure; the heading stays the gauge without sun. Later segments' first
+  // nodes have seen only readings before the segment.
+  Mat3d attitude_cov = s.covariance.bottomRightCorner<3, 3>();
+  if (spec_.first == 0 && o_.use_rest && !spec_.rests.empty() &&
+      spec_.rests.front()->t_start <= time(0) && spec_.rests.front()->t_end > time(0)) {
+    const est::RestWindow& w = *spec_.rests.front();
+    const double wide = 0.1 * 0.1;
+    const Vec3d added(w.has_gravity ? wide : 0.0, w.has_gravity ? wide : 0.0,
+                      w.has_sun && o_.use_sun ? wide : 0.0);
+    const Mat3d E = so3::eulerRateToBodyRate(s.q_site_body);
+    attitude_cov += E * added.asDiagonal() * E.transpose();
+  }
+  addStartPrior(residuals_, s.q_site_body, s.p_site, o_.start_position_sigma_m, attitude_cov,
+                handles_[0]);
   // Contact angles start from the stationary distribution of K-8.
   addContactPrior(residuals_, cfg_.process.contact_angle_time_constant_s,
                   cfg_.process.contact_angle_noise_rad_per_sqrt_s,

@@ -127,6 +127,20 @@ Quat<T> fromRollPitchYaw(const T& roll, const T& pitch, const T& yaw) {
 }
 
 /// Wraps an angle to (−π, π].
+/// E with δθ = E (δroll, δpitch, δyaw) to first order at q (body-frame δθ, q ⊗ Exp(δθ);
+/// Z-Y-X angles): the Euler-rate → body-rate matrix. Its yaw column is Rᵀe_z, the site's
+/// vertical seen from the body.
+inline Mat3d eulerRateToBodyRate(const Quatd& q) {
+  const Vec3d rpy = rollPitchYaw(q);
+  const double sr = std::sin(rpy.x()), cr = std::cos(rpy.x());
+  const double sp = std::sin(rpy.y()), cp = std::cos(rpy.y());
+  Mat3d E;
+  E << 1, 0, -sp,      //
+      0, cr, sr * cp,  //
+      0, -sr, cr * cp;
+  return E;
+}
+
 inline double wrapAngle(double a) {
   a = std::remainder(a, 2.0 * M_PI);
   return a <= -M_PI ? a + 2.0 * M_PI : a;

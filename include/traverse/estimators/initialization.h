@@ -28,13 +28,17 @@ struct InitialState {
   /// Roll and pitch came from the first rest window's gravity: they are then off by what an
   /// accelerometer bias tilts gravity by (the EKF correlates them with b_a when it carries it).
   bool roll_pitch_from_gravity = false;
-  bool yaw_from_sun = false;    ///< the yaw came from a sun reading (the window's mean or the first)
-  bool bias_from_rest = false;  ///< the bias came from the first rest window's gyro mean
-  /// The σ behind the values above before any reading of the log. An estimator that counts
-  /// the readings they came from itself (the EKF: the first rest's gravity update at its middle,
-  /// its zero-rate updates, every sun reading) starts from these instead, so that each reading is
-  /// counted once: roll and pitch 0.1 rad (as without gravity), yaw 0.1 rad where a sun reading
-  /// set it (0 without sun: the heading is then the gauge), the bias rover.yaml's initial σ.
+  bool yaw_from_sun = false;  ///< the yaw came from a sun reading (the window's mean or the first)
+  bool yaw_from_rest_sun = false;  ///< … from the first rest window's mean sun reading
+  bool bias_from_rest = false;     ///< the bias came from the first rest window's gyro mean
+  /// The rest window the values came from (into Segmentation::rests; −1 when none): an
+  /// estimator that starts from them must not count that window's gravity, mean sun heading or
+  /// gyro mean again (the EKF skips them there; the smoother's first segment widens its start
+  /// attitude prior instead, as it keeps the window's residuals).
+  int rest_index = -1;
+  /// The σ behind the values above before any reading of the log: roll and pitch 0.1 rad (as
+  /// without gravity), yaw 0.1 rad where a sun reading set it (0 without sun: the heading is
+  /// then the gauge), grown by the bias σ over the time to a reading after the start.
   Vec3d attitude_prior_sigma = Vec3d::Constant(0.1);
   Vec3d bias_prior_sigma = Vec3d::Constant(0.005);
 };
