@@ -5,6 +5,7 @@
 #include <numbers>
 #include <span>
 
+#include "traverse/io/diagnostics.h"
 #include "traverse/rover/joint_rates.h"
 
 #include "traverse/sensors/sun_sensor.h"
@@ -30,7 +31,6 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
   s.t = log.joints.t[0];
   s.p_site = o.position_site;
   s.bias_sigma.setConstant(log.config.gyro.initial_bias_sigma_rad_s);
-  s.bias_prior_sigma = s.bias_sigma;
   double roll = 0.0, pitch = 0.0, yaw = o.yaw_without_sun_rad;
   const RestWindow* w = nullptr;
   // The segment holding the start (the first, unless a stream began late).
@@ -70,17 +70,14 @@ InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
     // (heading change ≈ body z rotation on gentle slopes), and its σ grows by the bias's σ
     // over that time. (Before session 22 the reading's heading was taken as the start's: a
     // sun dropout over the first rest and leg of multi-stop gave 25° of yaw RMSE.)
-    // Across a gap in the gyro (over five mean sample periods) the turn is unknown.
+    // Across a gap in the gyro (io::TimeGaps, as the EKF's) the turn is unknown.
     double turned = 0.0;
-    bool gap = false;
     const io::Stream& g = log.gyro;
+    const bool gap = t_sun > s.t && io::TimeGaps(g).overlaps(s.t, t_sun);
     const Eigen::Index z = g.values.cols() - 1;
-    const double period = g.size() > 1 ? (g.t[g.size() - 1] - g.t[0]) / double(g.size() - 1) : 0;
     for (Eigen::Index k = 0; k + 1 < g.size() && g.t[k] < t_sun; ++k) {
       const double t0 = std::max(g.t[k], s.t), t1 = std::min(g.t[k + 1], t_sun);
-      if (t1 <= t0) continue;
-      if (g.t[k + 1] - g.t[k] > 5 * period) gap = true;
-      turned += (g.values(k, z) - s.bias.z()) * (t1 - t0);
+      if (t1 > t0) turned += (g.values(k, z) - s.bias.z()) * (t1 - t0);
     }
     yaw = so3::wrapAngle(yawFromSun(sun, roll, pitch, log.config.sun_sensor.R_body_sensor,
                                     log.config.sun.directionAt(t_sun)) -

@@ -40,7 +40,6 @@ struct InitialState {
   /// without gravity), yaw 0.1 rad where a sun reading set it (0 without sun: the heading is
   /// then the gauge), grown by the bias σ over the time to a reading after the start.
   Vec3d attitude_prior_sigma = Vec3d::Constant(0.1);
-  Vec3d bias_prior_sigma = Vec3d::Constant(0.005);
 };
 
 InitialState initialState(const io::TraverseLog& log, const Segmentation& seg,
