@@ -48,6 +48,8 @@ CASES = {
                             "faults.slip_burst.lateral_mps=0.005"]),
         ("clock sun +0.3 s", ["faults.clock_offset.sun=0.3"]),
         ("clock joints +0.2 s", ["faults.clock_offset.joints=0.2"]),
+        ("clock gyro +0.3 s", ["faults.clock_offset.gyro=0.3"]),
+        ("clock accel +0.3 s", ["faults.clock_offset.accel=0.3"]),
         ("no accel", ["faults.no_accel=true"]),
     ],
     "multi-stop": [
@@ -68,6 +70,9 @@ CASES = {
                             "faults.slip_burst.lateral_mps=0.005"]),
         ("clock sun +0.3 s", ["faults.clock_offset.sun=0.3"]),
         ("clock joints +0.2 s", ["faults.clock_offset.joints=0.2"]),
+        ("clock gyro +0.3 s", ["faults.clock_offset.gyro=0.3"]),
+        ("clock gyro +5 s", ["faults.clock_offset.gyro=5"]),
+        ("clock accel +0.3 s", ["faults.clock_offset.accel=0.3"]),
         ("no accel", ["faults.no_accel=true"]),
     ],
 }

@@ -20,7 +20,7 @@ std::filesystem::path datasets() {
 }
 
 /// The clean simulation of (scenario, seed), made once per process (ctest runs this suite as
-/// one: tests/CMakeLists.txt) — straight-1m seed 1 is the bundled log. The clock faults here are
+/// one: tests/CMakeLists.txt) — straight-1m and multi-stop seed 1 are the bundled logs. The clock faults here are
 /// applied to it afterwards, as the simulator applies them (sim/faults.cpp: the stream's stamps
 /// moved by the offset, the accelerometer dropped), so eleven logs cost five simulations
 /// (each about 20–60 s under ASan).
@@ -29,7 +29,7 @@ const sim::Simulation& clean(const std::string& scenario, uint64_t seed) {
   const auto key = std::make_pair(scenario, seed);
   auto it = cache.find(key);
   if (it == cache.end()) {
-    sim::Simulation s = scenario == "straight-1m" && seed == 1
+    sim::Simulation s = (scenario == "straight-1m" || scenario == "multi-stop") && seed == 1
                             ? testing::bundledSimulation(scenario)
                             : sim::simulate(sim::loadScenario(scenario, datasets(), {}),
                                             datasets() / "rovers" / "rocky7", seed);
@@ -154,6 +154,117 @@ TEST(EstClockOffset, AlignedEstimatesAreConsistent) {
   pipeline::PipelineConfig given;  // a known offset is removed as given
   given.joints_clock_offset_s = 0.2;
   EXPECT_DOUBLE_EQ(pipeline::estimate(log, given).joints_shift_s, -0.2);
+}
+
+/// The log with `file`'s stamps `offset` late (faults.clock_offset.<stream>).
+io::TraverseLog withLate(const io::TraverseLog& log, const std::string& file, double offset) {
+  return est::withStreamShifted(log, file, -offset);
+}
+
+// withStreamShifted moves one stream's stamps and nothing else.
+TEST(EstClockOffset, StreamShiftMovesThatStreamOnly) {
+  const io::TraverseLog& log = clean("straight-1m", 1).log;
+  for (const std::string file : {"gyro.csv", "accel.csv", "sun.csv", "joints.csv"}) {
+    const io::TraverseLog s = est::withStreamShifted(log, file, 0.5);
+    for (const io::NamedStream& n : io::logStreams(s)) {
+      if (!n.stream) continue;
+      const io::Stream* before = nullptr;
+      for (const io::NamedStream& m : io::logStreams(log))
+        if (std::string(m.file) == n.file) before = m.stream;
+      ASSERT_NE(before, nullptr);
+      const double moved = n.file == file ? -0.5 : 0.0;
+      EXPECT_DOUBLE_EQ(n.stream->t[3], before->t[3] + moved) << file << " " << n.file;
+      EXPECT_TRUE(n.stream->values == before->values);
+    }
+  }
+  EXPECT_THROW(est::withStreamShifted(log, "nothing.csv", 0.1), std::invalid_argument);
+}
+
+// One inertial stream stamped off alone (multi-stop: turns for the gyro, starts and stops for
+// the accelerometer): the stream that disagrees with the wheels and with the other inertial
+// stream is the one moved, by its own offset, and the joints stay. Before, the combined
+// correlation moved the joints (or nothing), and a 5 s gyro offset left DR 8.6 m off.
+TEST(EstClockOffset, MovesTheInertialStreamThatIsOffAlone) {
+  const io::TraverseLog& log = clean("multi-stop", 1).log;
+  struct Case {
+    std::string file;
+    double offset, tolerance;
+  };
+  for (const Case& c : {Case{"gyro.csv", 5.0, 0.1}, Case{"gyro.csv", -0.5, 0.1},
+                        Case{"accel.csv", 0.3, 0.1}, Case{"accel.csv", -2.0, 0.1}}) {
+    const est::ClockAlignment a = est::estimateClockAlignment(withLate(log, c.file, c.offset));
+    ASSERT_EQ(a.shifted.size(), 1u) << c.file << " " << c.offset;
+    EXPECT_EQ(a.shifted[0].file, c.file) << a.shifted[0].message();
+    EXPECT_NEAR(a.shifted[0].offset_s, c.offset, c.tolerance) << a.shifted[0].message();
+    EXPECT_EQ(a.find("joints.csv"), nullptr);
+  }
+  // The joints off: the two inertial streams agree, the joints move (as before).
+  const est::ClockAlignment j = est::estimateClockAlignment(withLate(log, "joints.csv", 0.5));
+  ASSERT_NE(j.find("joints.csv"), nullptr);
+  EXPECT_NEAR(j.find("joints.csv")->offset_s, 0.5, 0.1);
+  EXPECT_EQ(j.find("gyro.csv"), nullptr);
+  EXPECT_EQ(j.find("accel.csv"), nullptr);
+}
+
+// sun.csv stamped late against the gyro: found by the azimuth fit on a turn in place and on
+// multi-stop (0.37 s there for 0.3: its 1 Hz sun), each within 4 of its own σ; early too.
+TEST(EstClockOffset, FindsTheSunOffsetFromTheTurns) {
+  for (const auto& [scenario, offset] : std::vector<std::pair<std::string, double>>{
+           {"turn-in-place-360", 0.3}, {"turn-in-place-360", -0.4}, {"multi-stop", 0.3}}) {
+    const est::ClockAlignment a =
+        est::estimateClockAlignment(withLate(clean(scenario, 1).log, "sun.csv", offset));
+    ASSERT_EQ(a.shifted.size(), 1u) << scenario << " " << offset;
+    const est::ClockOffset& c = a.shifted[0];
+    EXPECT_EQ(c.file, "sun.csv") << c.message();
+    EXPECT_NEAR(c.offset_s, offset, std::max(0.05, 4.0 * c.sigma_s)) << c.message();
+    EXPECT_GT(c.sigma_s, 0.0);
+    EXPECT_LT(c.sigma_s, 0.06);
+  }
+}
+
+// A gyro stamped 4 s late on a straight drive: the wheels see no yaw rate to tell it by, but
+// the sun fits the gyro 4 s off while gyro.csv begins and ends 4 s after every other stream:
+// the gyro is moved, not the sun.
+TEST(EstClockOffset, TheGyroApartByItsStampsIsMovedNotTheSun) {
+  const est::ClockAlignment a =
+      est::estimateClockAlignment(withLate(clean("straight-1m", 1).log, "gyro.csv", 4.0));
+  ASSERT_EQ(a.shifted.size(), 1u);
+  EXPECT_EQ(a.shifted[0].file, "gyro.csv") << a.shifted[0].message();
+  EXPECT_NEAR(a.shifted[0].offset_s, 4.0, 0.5) << a.shifted[0].message();
+}
+
+// Clean logs: no clock moved, the sun's included (the worst seen: planar-18m's 20 Hz sun, whose
+// χ² falls by 15 at a spurious ±0.9 s on a drive without turns — the cost-share test holds it).
+TEST(EstClockOffset, MovesNoClockOnCleanLogs) {
+  for (const auto& [scenario, seed] : std::vector<std::pair<std::string, uint64_t>>{
+           {"straight-1m", 1}, {"multi-stop", 1}, {"turn-in-place-360", 1}}) {
+    const est::ClockAlignment a = est::estimateClockAlignment(clean(scenario, seed).log);
+    EXPECT_TRUE(a.shifted.empty()) << scenario << ": " << a.shifted[0].message();
+    const est::ClockOffset sun = est::estimateSunClockOffset(clean(scenario, seed).log);
+    EXPECT_FALSE(sun.significant) << scenario << ": " << sun.message();
+  }
+}
+
+// End to end: an accelerometer 0.3 s late on multi-stop no longer moves the joints: the EKF's
+// NEES stays at the clean log's.
+TEST(EstClockOffset, AnAccelerometerOffsetLeavesTheEstimatesClean) {
+  const io::TraverseLog& log0 = clean("multi-stop", 1).log;
+  const io::TraverseLog log = withLate(log0, "accel.csv", 0.3);
+  const eval::TruthTrajectory truth(*log.truth);
+  const auto nees = [&](const io::TraverseLog& l) {
+    pipeline::PipelineConfig c;
+    c.smooth = false;
+    return *eval::evaluate(pipeline::estimate(l, c).ekf.trajectory, truth)
+                .get("nees_position_mean");
+  };
+  const pipeline::Estimates e = [&] {
+    pipeline::PipelineConfig c;
+    c.smooth = false;
+    return pipeline::estimate(log, c);
+  }();
+  ASSERT_NE(e.clocks.find("accel.csv"), nullptr);
+  EXPECT_EQ(e.joints_shift_s, 0.0);
+  EXPECT_LT(nees(log), 1.2 * nees(log0));
 }
 
 }  // namespace

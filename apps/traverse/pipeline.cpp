@@ -236,18 +236,28 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
   pipeline::PipelineConfig config = pipelineConfig(o);
   config.smooth = smooth;
   pipeline::Estimates e = pipeline::estimate(log, config, &diagnostics);
-  if (e.joints_shift_s != 0.0) {  // a finding like the others: printed and counted
+  // Each clock moved is a finding like the others: printed and counted.
+  std::vector<est::ClockOffset> moved = e.clocks.shifted;
+  if (config.joints_clock_offset_s && e.joints_shift_s != 0.0) {
+    est::ClockOffset given;
+    given.offset_s = -e.joints_shift_s;
+    moved.push_back(given);
+  }
+  for (const est::ClockOffset& c : moved) {
+    const bool given = config.joints_clock_offset_s.has_value();
+    const io::Stream* stream = nullptr;
+    for (const io::NamedStream& n : io::logStreams(log))
+      if (c.file == n.file) stream = n.stream;
     io::Finding f;
-    f.file = "joints.csv", f.kind = "clock_offset", f.t = log.joints.t[0];
-    f.column = "t", f.value = -e.joints_shift_s;  // metrics.json: the offset, s
+    f.file = c.file, f.kind = "clock_offset";
+    f.t = stream && stream->size() > 0 ? stream->t[0] : 0.0;
+    f.column = "t", f.value = c.offset_s;  // metrics.json: the offset, s
     char shift[64];
-    std::snprintf(shift, sizeof shift, "its stamps moved by %+.3f s", e.joints_shift_s);
-    f.message =
-        (config.joints_clock_offset_s ? std::string("clock offset given on the command line")
-                                      : e.joints_clock.message()) +
-        ": " + shift + " (--no-clock-align keeps them)";
+    std::snprintf(shift, sizeof shift, "its stamps moved by %+.3f s", -c.offset_s);
+    f.message = (given ? std::string("clock offset given on the command line") : c.message()) +
+                ": " + shift + " (--no-clock-align keeps them)";
     auto at = std::find_if(diagnostics.findings.begin(), diagnostics.findings.end(),
-                           [](const io::Finding& g) { return g.file == "joints.csv"; });
+                           [&](const io::Finding& g) { return g.file == c.file; });
     diagnostics.findings.insert(at, f);
   }
   for (io::Finding& f : diagnostics.findings) {

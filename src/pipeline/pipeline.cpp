@@ -111,11 +111,15 @@ io::TraverseLog screenedLog(const io::TraverseLog& input, const PipelineConfig& 
   }
   if (config.joints_clock_offset_s) {
     e.joints_shift_s = -*config.joints_clock_offset_s;
+    if (e.joints_shift_s != 0.0) screened = est::withJointsShifted(screened, -e.joints_shift_s);
   } else if (config.align_joints_clock) {
-    e.joints_clock = est::estimateJointsClockOffset(screened);
-    if (e.joints_clock.significant) e.joints_shift_s = -e.joints_clock.offset_s;
+    e.clocks = est::estimateClockAlignment(screened);
+    if (const est::ClockOffset* j = e.clocks.find("joints.csv")) {
+      e.joints_clock = *j;
+      e.joints_shift_s = -j->offset_s;
+    }
+    screened = est::withClocksAligned(screened, e.clocks);
   }
-  if (e.joints_shift_s != 0.0) screened = est::withJointsShifted(screened, -e.joints_shift_s);
   return screened;
 }
 

@@ -1,5 +1,5 @@
-// The clock offset of joints.csv against the inertial streams (gyro.csv, accel.csv), found from
-// the data: the yaw rate and the forward acceleration that the wheels imply (the slip
+// The clock offsets between the streams of a log, found from the data. joints.csv against the
+// inertial streams (gyro.csv, accel.csv): the yaw rate and the forward acceleration that the wheels imply (the slip
 // constraint K-17 with zero slip, solved for v_x and ω_z at every joint sample) are
 // cross-correlated with the gyro's heading-axis rate and the accelerometer's x axis. A joints
 // stream stamped late by d lags the inertial one by d: the correlation peaks at that lag.
@@ -8,9 +8,22 @@
 // constant bias, a tilt's gravity component or a long steady turn do not dominate; what remains
 // is where motion changes — starts, stops, the ends of turns — which is where a time offset
 // shows. Without such changes (a log that never moves) nothing is estimated.
+//
+// Which clock is wrong (estimateClockAlignment): each inertial stream is also correlated with
+// the wheels on its own. When both hold motion and disagree, the one that agrees with the wheels
+// shares their clock and the other is moved (a gyro or accelerometer stamped late alone); when
+// they agree, or only one holds motion, the inertial clock is the reference and joints.csv is
+// moved (one IMU, one clock: the likely case, and the only one a log without turns or without an
+// accelerometer can tell). Then sun.csv against the gyro, by least squares: the sun's azimuth
+// about the body z axis turns as the gyro says (u̇ = −ω × u, u the sun in the body frame), so
+// along a run of readings the azimuth minus the gyro's turn since the run began is a constant
+// (and a slow bias drift) plus the readings' noise at the right lag, and carries ω·(error) where
+// the rover turns at a wrong one. The lag minimising its high-passed, noise-weighted sum of
+// squares is the offset; its σ comes from the cost's curvature.
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "traverse/io/log.h"
 
@@ -31,6 +44,13 @@ struct ClockOffsetOptions {
   /// and one stop on undulating ground, whose gravity on the accelerometer's x axis moves with
   /// the rover; docs/results.md), so a smaller offset is not told from none.
   double min_offset_periods = 3.0;
+  /// sun.csv: an offset is reported only beyond this (s) and beyond 4 of its own σ.
+  double min_sun_offset_s = 0.1;
+  /// sun.csv: and the fit's χ² must fall below the unshifted stamps' by this (scaled by the
+  /// reduced χ²): 16, a 4σ improvement.
+  double min_sun_delta_chi2 = 16.0;
+  /// sun.csv: and fall by at least this share of the fit's own χ².
+  double min_sun_cost_share = 0.01;
 };
 
 struct ClockOffset {
@@ -40,8 +60,25 @@ struct ClockOffset {
   double correlation = 0.0;  ///< combined correlation at the correlation's offset
   double correlation_at_zero = 0.0;
   std::string signals;  ///< the signals used: "yaw rate", "forward speed"
-  /// "clock offset of +0.200 s against gyro.csv/accel.csv (...)": the warning's text.
+  /// The stream whose stamps the offset is of, and what it was measured against.
+  std::string file = "joints.csv";
+  std::string against = "the gyro and accelerometer";
+  std::string how = "from the wheels cross-correlated with the inertial sensors";
+  std::string note;  ///< appended to the parenthesis (why this stream, not another)
+  /// sun.csv: the parenthesis in full (a least-squares fit, not a correlation; `correlation`
+  /// and `correlation_at_zero` then hold the reduced χ² at the offset and at zero), and the
+  /// offset's 1σ (s).
+  std::string detail;
+  double sigma_s = 0.0;
+  /// "clock offset of +0.200 s against the gyro and accelerometer (...)": the warning's text.
   std::string message() const;
+};
+
+/// Every clock found to be off, in the order they were applied: at most one of joints.csv,
+/// gyro.csv, accel.csv (or both inertial streams), then sun.csv.
+struct ClockAlignment {
+  std::vector<ClockOffset> shifted;  ///< each significant; its stamps moved by −offset_s
+  const ClockOffset* find(const std::string& file) const;
 };
 
 /// Estimates joints.csv's clock offset against gyro.csv (and accel.csv when present) by
@@ -50,8 +87,25 @@ struct ClockOffset {
 ClockOffset estimateJointsClockOffset(const io::TraverseLog& log,
                                       const ClockOffsetOptions& options = {});
 
+/// Every stream's clock (see the top of this file): which stream is off and by how much.
+ClockAlignment estimateClockAlignment(const io::TraverseLog& log,
+                                      const ClockOffsetOptions& options = {});
+
+/// sun.csv's clock offset against gyro.csv (+: the sun's stamps late); not significant without
+/// turns, without a sun stream or with too few valid readings.
+ClockOffset estimateSunClockOffset(const io::TraverseLog& log,
+                                   const ClockOffsetOptions& options = {});
+
 /// The log with joints.csv's stamps (and its wheel outages) moved by −offset_s, onto the
 /// inertial clock.
 io::TraverseLog withJointsShifted(const io::TraverseLog& log, double offset_s);
+
+/// The log with `file`'s stamps (joints.csv, gyro.csv, accel.csv, sun.csv or cmd.csv) moved by
+/// −offset_s.
+io::TraverseLog withStreamShifted(const io::TraverseLog& log, const std::string& file,
+                                  double offset_s);
+
+/// The log with every clock of `alignment` moved.
+io::TraverseLog withClocksAligned(const io::TraverseLog& log, const ClockAlignment& alignment);
 
 }  // namespace traverse::est

@@ -38,12 +38,12 @@ struct PipelineConfig {
   /// Use no drive angle of a wheel over a stretch io::diagnose calls `stuck` (the encoder holds
   /// one reading while the other wheels turn) — see withoutStuckWheels.
   bool drop_stuck_wheels = true;
-  /// Estimate joints.csv's clock offset against the gyro and accelerometer
-  /// (est::estimateJointsClockOffset) and, when it is significant, move the joint stamps onto
-  /// the inertial clock before estimating.
+  /// Estimate the streams' clock offsets (est::estimateClockAlignment: joints.csv against the
+  /// gyro and accelerometer, or one inertial stream against the other two, then sun.csv against
+  /// the gyro) and move the stamps of each stream found off before estimating.
   bool align_joints_clock = true;
   /// A known offset of joints.csv's clock (s, + = its stamps late) to remove instead of
-  /// estimating one.
+  /// estimating any.
   std::optional<double> joints_clock_offset_s;
   smoother::SmootherOptions smoother;
 };
@@ -67,6 +67,9 @@ struct Estimates {
   /// its stamps (−offset; 0 when none was).
   ClockOffset joints_clock;
   double joints_shift_s = 0.0;
+  /// Every stream whose clock was found off and moved (est::estimateClockAlignment: joints.csv
+  /// as above, or gyro.csv / accel.csv alone, and sun.csv), when align_joints_clock.
+  est::ClockAlignment clocks;
   /// Variance (fraction²) of the wheels' mean rolling-radius scale that rover.yaml declares
   /// (io::OdometryConfig), carried in every estimator's position covariance
   /// (est::addOdometryScaleCovariance); 0 when it declares none.
