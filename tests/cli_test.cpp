@@ -180,6 +180,25 @@ TEST(Cli, RunFindsAndRemovesAJointsClockOffset) {
   std::filesystem::remove_all(dir);
 }
 
+// A sun clock 0.3 s late on a turn in place: sun.csv is the stream named and moved (not the
+// joints), its offset counted in metrics.json with the file's own name.
+TEST(Cli, RunFindsAndRemovesASunClockOffset) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_sun_clock";
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(run("simulate turn-in-place-360 --set faults.clock_offset.sun=0.3 -o " + dir.string())
+                .code,
+            0);
+  const Result r = run("filter " + dir.string() + " -o " + (dir / "out").string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("warning: sun.csv: clock offset of +0.2"));
+  EXPECT_THAT(r.err, HasSubstr("against the gyro"));
+  EXPECT_THAT(r.err, Not(HasSubstr("joints.csv: clock offset")));
+  const eval::MetricsReport m = eval::readMetricsJson(dir / "out" / "metrics.json");
+  ASSERT_TRUE(m.diagnostics);
+  EXPECT_EQ(m.diagnostics->countsByKind().at("clock_offset"), 1);
+  std::filesystem::remove_all(dir);
+}
+
 // A log without truth still gets metrics.json: the diagnostics, nothing to evaluate. A gap the
 // run warns of is the one the file lists.
 TEST(Cli, FilterWithoutTruthWritesTheDiagnostics) {
