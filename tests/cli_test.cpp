@@ -185,9 +185,9 @@ TEST(Cli, RunFindsAndRemovesAJointsClockOffset) {
 TEST(Cli, RunFindsAndRemovesASunClockOffset) {
   const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_sun_clock";
   std::filesystem::remove_all(dir);
-  ASSERT_EQ(run("simulate turn-in-place-360 --set faults.clock_offset.sun=0.3 -o " + dir.string())
-                .code,
-            0);
+  ASSERT_EQ(
+      run("simulate turn-in-place-360 --set faults.clock_offset.sun=0.3 -o " + dir.string()).code,
+      0);
   const Result r = run("filter " + dir.string() + " -o " + (dir / "out").string());
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_THAT(r.err, HasSubstr("warning: sun.csv: clock offset of +0.2"));

@@ -20,10 +20,10 @@ std::filesystem::path datasets() {
 }
 
 /// The clean simulation of (scenario, seed), made once per process (ctest runs this suite as
-/// one: tests/CMakeLists.txt) — straight-1m and multi-stop seed 1 are the bundled logs. The clock faults here are
-/// applied to it afterwards, as the simulator applies them (sim/faults.cpp: the stream's stamps
-/// moved by the offset, the accelerometer dropped), so eleven logs cost five simulations
-/// (each about 20–60 s under ASan).
+/// one: tests/CMakeLists.txt) — straight-1m and multi-stop seed 1 are the bundled logs. The clock
+/// faults here are applied to it afterwards, as the simulator applies them (sim/faults.cpp: the
+/// stream's stamps moved by the offset, the accelerometer dropped), so eleven logs cost five
+/// simulations (each about 20–60 s under ASan).
 const sim::Simulation& clean(const std::string& scenario, uint64_t seed) {
   static std::map<std::pair<std::string, uint64_t>, sim::Simulation> cache;
   const auto key = std::make_pair(scenario, seed);

@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "traverse/estimators/ekf.h"  // jointSamples
 #include "traverse/core/so3.h"
+#include "traverse/estimators/ekf.h"  // jointSamples
 #include "traverse/io/diagnostics.h"
 #include "traverse/rover/nominal_slip.h"
 #include "traverse/sensors/gyro.h"
@@ -217,8 +217,8 @@ std::pair<double, double> lagRange(const io::Stream& reference, const io::Stream
 /// the offset of the stream correlated against (+: its stamps late: the other signal read at
 /// t − d). `significant` as for estimateJointsClockOffset, with `min_offset` for the offset.
 ClockOffset combine(const std::vector<std::pair<std::string, std::vector<double>>>& signals,
-                    const std::vector<double>& lags, size_t zero, double span_s,
-                    double min_offset, const ClockOffsetOptions& o) {
+                    const std::vector<double>& lags, size_t zero, double span_s, double min_offset,
+                    const ClockOffsetOptions& o) {
   ClockOffset out;
   std::vector<double> rho(lags.size(), 0.0);
   double weight = 0.0;
@@ -337,9 +337,10 @@ ClockOffset estimateSunClockOffset(const io::TraverseLog& log, const ClockOffset
       a[i] = (u.x() * ud.y() - u.y() * ud.x()) / rho2;
     }
     if (chains.back().empty()) sigma.back().push_back(log.config.sun_sensor.noise / m0.norm());
-    chains.back().push_back({sun.t[k], sun.t[k + 1],
-                             so3::wrapAngle(std::atan2(u1.y(), u1.x()) - std::atan2(u0.y(), u0.x())),
-                             a.cwiseProduct(axes.mask())});
+    chains.back().push_back(
+        {sun.t[k], sun.t[k + 1],
+         so3::wrapAngle(std::atan2(u1.y(), u1.x()) - std::atan2(u0.y(), u0.x())),
+         a.cwiseProduct(axes.mask())});
     sigma.back().push_back(log.config.sun_sensor.noise / m1.norm());
   }
   if (chains.back().empty()) chains.pop_back(), sigma.pop_back();
@@ -368,7 +369,7 @@ ClockOffset estimateSunClockOffset(const io::TraverseLog& log, const ClockOffset
   size_t zero = 0;
   const std::vector<double> lags = lagGrid({lagRange(g, sun, sun_dt, o.max_lag_s)}, step, &zero);
   std::vector<double> cost(lags.size(), 0.0);  // mean weighted square per reading
-  size_t used = 0;                              // readings at lag 0
+  size_t used = 0;                             // readings at lag 0
   for (size_t l = 0; l < lags.size(); ++l) {
     double sum = 0.0;
     size_t n = 0;
@@ -393,14 +394,17 @@ ClockOffset estimateSunClockOffset(const io::TraverseLog& log, const ClockOffset
           const auto cc = static_cast<size_t>(col);
           const double i0 = integral[cc].at(st.t0 + lags[l], cur0[cc]);
           const double i1 = integral[cc].at(st.t1 + lags[l], cur1[cc]);
-          if (std::isnan(i0) || std::isnan(i1)) ok = false;
-          else pred += st.a[axes.axis(col)] * (i1 - i0);
+          if (std::isnan(i0) || std::isnan(i1))
+            ok = false;
+          else
+            pred += st.a[axes.axis(col)] * (i1 - i0);
         }
         if (!ok) {
           flush();
           continue;
         }
-        if (t.empty()) t.push_back(st.t0), e.push_back(0.0), w.push_back(1.0 / (sigma[c][i] * sigma[c][i]));
+        if (t.empty())
+          t.push_back(st.t0), e.push_back(0.0), w.push_back(1.0 / (sigma[c][i] * sigma[c][i]));
         t.push_back(st.t1), e.push_back(e.back() + st.turn - pred);
         w.push_back(1.0 / (sigma[c][i + 1] * sigma[c][i + 1]));
       }
@@ -491,11 +495,11 @@ ClockAlignment estimateClockAlignment(const io::TraverseLog& log, const ClockOff
         };
         std::vector<ClockOffset> moved;
         if (std::abs(accel.offset_s) <= tol) {
-          moved.push_back(own(gyro, "gyro.csv", "joints.csv and accel.csv", "accel.csv",
-                              accel.offset_s));
+          moved.push_back(
+              own(gyro, "gyro.csv", "joints.csv and accel.csv", "accel.csv", accel.offset_s));
         } else if (std::abs(gyro.offset_s) <= tol) {
-          moved.push_back(own(accel, "accel.csv", "joints.csv and gyro.csv", "gyro.csv",
-                              gyro.offset_s));
+          moved.push_back(
+              own(accel, "accel.csv", "joints.csv and gyro.csv", "gyro.csv", gyro.offset_s));
         } else {  // all three apart: the wheels' clock is the reference
           moved.push_back(own(gyro, "gyro.csv", "joints.csv", "accel.csv", accel.offset_s));
           moved.push_back(own(accel, "accel.csv", "joints.csv", "gyro.csv", gyro.offset_s));
@@ -523,8 +527,9 @@ ClockAlignment estimateClockAlignment(const io::TraverseLog& log, const ClockOff
     const bool wheels_agree = gyro_pair.estimated &&
                               std::abs(by_wheels) >= 0.5 * std::abs(sun.offset_s) &&
                               std::abs(-sun.offset_s - by_wheels) < 0.5 * std::abs(sun.offset_s);
-    const bool stamps_agree = std::abs(d0 - d1) <= 2 * period && std::abs(d0) > o.max_lag_s &&
-                              std::abs(sun.offset_s + d0) <= std::max(o.max_lag_s, 4.0 * sun.sigma_s);
+    const bool stamps_agree =
+        std::abs(d0 - d1) <= 2 * period && std::abs(d0) > o.max_lag_s &&
+        std::abs(sun.offset_s + d0) <= std::max(o.max_lag_s, 4.0 * sun.sigma_s);
     if (!out.find("gyro.csv") && (stamps_agree || wheels_agree)) {
       ClockOffset gyro = sun;
       gyro.file = "gyro.csv", gyro.offset_s = -sun.offset_s;

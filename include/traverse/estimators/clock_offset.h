@@ -1,6 +1,6 @@
 // The clock offsets between the streams of a log, found from the data. joints.csv against the
-// inertial streams (gyro.csv, accel.csv): the yaw rate and the forward acceleration that the wheels imply (the slip
-// constraint K-17 with zero slip, solved for v_x and ω_z at every joint sample) are
+// inertial streams (gyro.csv, accel.csv): the yaw rate and the forward acceleration that the wheels
+// imply (the slip constraint K-17 with zero slip, solved for v_x and ω_z at every joint sample) are
 // cross-correlated with the gyro's heading-axis rate and the accelerometer's x axis. A joints
 // stream stamped late by d lags the inertial one by d: the correlation peaks at that lag.
 //
