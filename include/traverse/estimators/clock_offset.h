@@ -44,6 +44,10 @@ struct ClockOffsetOptions {
   /// and one stop on undulating ground, whose gravity on the accelerometer's x axis moves with
   /// the rover; docs/results.md), so a smaller offset is not told from none.
   double min_offset_periods = 3.0;
+  /// ...and this many of its own σ: the jackknife scatter of the correlation's peak over 16
+  /// blocks of the log (a flat correlation — a noisy gyro against slowly changing turns — gives
+  /// a broad one).
+  double min_offset_sigmas = 4.0;
   /// sun.csv: an offset is reported only beyond this (s) and beyond 4 of its own σ.
   double min_sun_offset_s = 0.1;
   /// sun.csv: and the fit's χ² must fall below the unshifted stamps' by this (scaled by the
@@ -66,8 +70,9 @@ struct ClockOffset {
   std::string how = "from the wheels cross-correlated with the inertial sensors";
   std::string note;  ///< appended to the parenthesis (why this stream, not another)
   /// sun.csv: the parenthesis in full (a least-squares fit, not a correlation; `correlation`
-  /// and `correlation_at_zero` then hold the reduced χ² at the offset and at zero), and the
-  /// offset's 1σ (s).
+  /// and `correlation_at_zero` then hold the reduced χ² at the offset and at zero).
+  /// `sigma_s`: the offset's 1σ (s): the fit's curvature for sun.csv, the correlation peak's
+  /// block jackknife for the others.
   std::string detail;
   double sigma_s = 0.0;
   /// "clock offset of +0.200 s against the gyro and accelerometer (...)": the warning's text.
