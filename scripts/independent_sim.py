@@ -493,7 +493,7 @@ def write_csv(path, header, cols, fmts):
 def stamps(rate, t_end, rng, t0):
     dt = 1.0 / rate
     phase = rng.uniform(0.0, 0.5 * dt)
-    return t0 + phase + dt * np.arange(int(math.floor((t_end - phase) / dt)) + 1)
+    return t0 + phase + dt * np.arange(int(math.floor((t_end - t0 - phase) / dt)) + 1)
 
 
 def generate(a):

@@ -250,6 +250,36 @@ TEST(EvalMetrics, YawRotationAboutStart) {
   EXPECT_NEAR(metric(m, "rpe_pct_per_m"), 0.0, kTol);
 }
 
+
+TEST(EvalMetrics, AnUnmeasuredStartHeadingIsTurnedOntoTheTruthsLikeTheStartPosition) {
+  // No sun: the estimate starts at heading 0 (the gauge) where the truth starts at 20°, and
+  // elsewhere (the start position is a gauge too). Turned about its start onto the truth's start
+  // heading, an estimate that is the truth in its own frame has no error at all — and its
+  // position covariance turns with it: a σ of 1 m along its own x, 1 cm across, is 1 m along
+  // the truth's 20° line, so an error along that line is consistent.
+  const double psi = 20 * kDeg;
+  const auto truth_poses = straight(psi, 10.0, 0.5);
+  est::Trajectory tr = trajectoryOf(straight(0.0, 10.0, 1.0), {}, true);
+  for (auto& n : tr.nodes) {
+    n.p_site += Vec3d(5, -3, 1);
+    n.covariance.topLeftCorner<3, 3>() = Vec3d(1.0, 1e-4, 1e-4).asDiagonal();
+  }
+  EvaluateOptions gauge;
+  gauge.heading_is_gauge = true;
+  const Metrics m = evaluate(tr, TruthTrajectory(truthStream(truth_poses)), gauge);
+  for (const char* key : {"final_position_error_m", "position_rmse_m", "max_cross_track_m",
+                          "yaw_rmse_deg", "rpe_pct_per_m", "ate_posyaw_m", "nees_position_mean"})
+    EXPECT_NEAR(metric(m, key), 0.0, 1e-9) << key;
+  // Without the gauge option the same estimate is 20° off (as YawRotationAboutStart).
+  const Metrics raw = evaluate(tr, TruthTrajectory(truthStream(truth_poses)));
+  EXPECT_NEAR(metric(raw, "yaw_rmse_deg"), 20.0, 1e-9);
+  // An error of 0.5 m along the truth's heading at the end: NEES (0.5/1)² at that node only.
+  tr.nodes.back().p_site += Vec3d(0.5, 0, 0);
+  const Metrics along = evaluate(tr, TruthTrajectory(truthStream(truth_poses)), gauge);
+  EXPECT_NEAR(metric(along, "final_position_error_m"), 0.5, 1e-9);
+  EXPECT_NEAR(metric(along, "nees_position_mean"), 0.25 / static_cast<double>(tr.nodes.size()),
+              1e-9);
+}
 TEST(EvalMetrics, DriftOnStraightPathGivesKnownCrossTrackDistanceAndRpe) {
   // Heading 30°, 10 m. The estimate drifts 2 % along track and 5 % sideways.
   const double heading = 30 * kDeg;

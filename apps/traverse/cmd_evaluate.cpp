@@ -50,7 +50,8 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
   auto opt = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
       "evaluate", "Compare the trajectories in OUTDIR with a log's truth; write metrics.json");
-  cmd->add_option("OUTDIR", opt->out_dir, "Output directory holding dr.csv, ekf.csv, rts.csv, smoothed.csv")
+  cmd->add_option("OUTDIR", opt->out_dir,
+                  "Output directory holding dr.csv, ekf.csv, rts.csv, smoothed.csv")
       ->required();
   cmd->add_option("--truth", opt->log_dir, "Log directory holding truth.csv or gps.csv")
       ->required();
@@ -72,7 +73,12 @@ Command addEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
     eval::MetricsReport report;
     if (pose_truth) {
       const eval::TruthTrajectory truth(io::readCsv(truth_file, io::logStreamSpec("truth.csv")));
-      report = eval::evaluateAll(logName(opt->log_dir), trajectories, truth);
+      // No valid sun reading in the log: the start heading was the gauge (as `run` decides).
+      eval::EvaluateOptions eo;
+      const fs::path sun_file = log_dir / "sun.csv";
+      eo.heading_is_gauge = !fs::exists(sun_file) || !io::hasValidSunReading(io::readCsv(
+                                                         sun_file, io::logStreamSpec("sun.csv")));
+      report = eval::evaluateAll(logName(opt->log_dir), trajectories, truth, eo);
     } else {  // position-only truth; its lever arm is in rover.yaml
       const io::RoverConfig config = io::loadRoverConfig(log_dir / "rover.yaml");
       const eval::PositionTruth truth(io::readCsv(gps_file, io::logStreamSpec("gps.csv")),

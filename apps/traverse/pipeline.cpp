@@ -170,7 +170,9 @@ eval::MetricsReport evaluateAgainstLogTruth(const io::TraverseLog& log,
     report.evaluated = false;
   } else if (log.truth) {
     const eval::TruthTrajectory truth(*log.truth);
-    report = eval::evaluateAll(name, trajectories, truth);
+    eval::EvaluateOptions eo;
+    eo.heading_is_gauge = o.no_sun || !io::hasValidSunReading(log.sun);
+    report = eval::evaluateAll(name, trajectories, truth, eo);
     setRestBiasMetric(report, seg, truth);
   } else {
     report = eval::evaluateAllAgainstFixes(

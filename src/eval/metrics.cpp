@@ -22,14 +22,18 @@ constexpr double kMinLength = 1e-9;
 struct NodePairs {
   std::vector<double> t;
   std::vector<Vec3d> p_hat_raw;  ///< as estimated (for the ATE, which aligns on its own)
-  std::vector<Vec3d> p_hat;      ///< after the initial translation p(t_0) − p̂_0
+  std::vector<Vec3d> p_hat;      ///< after the initial translation p(t_0) − p̂_0 (and turn)
   std::vector<Vec3d> p;
-  std::vector<Quatd> q_hat, q;
+  std::vector<Quatd> q_hat, q;  ///< q_hat after the initial turn
+  /// The turn about the vertical applied to the estimate (identity unless the heading is the
+  /// gauge: EvaluateOptions::heading_is_gauge); its position covariance turns with it.
+  Mat3d R_gauge = Mat3d::Identity();
 
   std::size_t size() const { return t.size(); }
 };
 
-NodePairs pairUp(const est::Trajectory& trajectory, const TruthTrajectory& truth) {
+NodePairs pairUp(const est::Trajectory& trajectory, const TruthTrajectory& truth,
+                 const EvaluateOptions& o) {
   NodePairs n;
   for (const est::TrajectoryNode& node : trajectory.nodes) {
     n.t.push_back(node.t);
@@ -38,8 +42,17 @@ NodePairs pairUp(const est::Trajectory& trajectory, const TruthTrajectory& truth
     n.q_hat.push_back(node.q_site_body.normalized());
     n.q.push_back(truth.attitude(node.t));
   }
-  const Vec3d offset = n.p.front() - n.p_hat_raw.front();
-  for (const Vec3d& p : n.p_hat_raw) n.p_hat.push_back(p + offset);
+  if (o.heading_is_gauge) {
+    // The start heading was not measured (no sun): like the start position, it is put on the
+    // truth's — the estimate turned about the vertical through its start by the yaw between them.
+    const double turn =
+        so3::wrapAngle(so3::rollPitchYaw(n.q.front()).z() - so3::rollPitchYaw(n.q_hat.front()).z());
+    const Quatd r(Eigen::AngleAxisd(turn, Vec3d::UnitZ()));
+    n.R_gauge = r.toRotationMatrix();
+    for (Quatd& q : n.q_hat) q = (r * q).normalized();
+  }
+  for (const Vec3d& p : n.p_hat_raw)
+    n.p_hat.push_back(n.p.front() + n.R_gauge * (p - n.p_hat_raw.front()));
   return n;
 }
 
@@ -175,10 +188,12 @@ void addNees(Metrics& m, const est::Trajectory& tr, const NodePairs& n, double m
     const Mat6d& P = tr.nodes[k].covariance;
     const Vec3d e_p = n.p[k] - n.p_hat[k];
     const Vec3d e_a = so3::boxminus(n.q[k], n.q_hat[k]);  // Log(q̂⁻¹ q): q = q̂ ⊗ Exp(e)
-    if (const auto v = normalizedSquare(P.topLeftCorner<3, 3>(), e_p, min_eigenvalue)) {
+    // Position in the site frame turns with the gauge; attitude's is in the body frame.
+    const Mat3d P_p = n.R_gauge * P.topLeftCorner<3, 3>() * n.R_gauge.transpose();
+    if (const auto v = normalizedSquare(P_p, e_p, min_eigenvalue)) {
       sum_p += *v;
       ++count_p;
-      e2_p += e_p.squaredNorm(), s2_p += P.topLeftCorner<3, 3>().trace();
+      e2_p += e_p.squaredNorm(), s2_p += P_p.trace();
     }
     if (const auto v = normalizedSquare(P.bottomRightCorner<3, 3>(), e_a, min_eigenvalue)) {
       sum_a += *v;
@@ -235,7 +250,7 @@ Metrics evaluate(const est::Trajectory& trajectory, const TruthTrajectory& truth
                  const EvaluateOptions& options) {
   Metrics m;
   if (trajectory.nodes.empty()) return m;
-  const NodePairs n = pairUp(trajectory, truth);
+  const NodePairs n = pairUp(trajectory, truth, options);
   const double path_length = truth.pathLength(n.t.front(), n.t.back());
   addPositionMetrics(m, n, path_length);
   m.set("max_cross_track_m", maxCrossTrack(n, truth, options.min_speed_mps));

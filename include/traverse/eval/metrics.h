@@ -83,6 +83,11 @@ struct EvaluateOptions {
   double rpe_short_fraction = 0.25;  ///< … of the path length
   double min_speed_mps = 1e-3;       ///< below: cross-track direction from the true heading instead
   double min_covariance_eigenvalue = 1e-16;  ///< NEES skips blocks with a smaller eigenvalue
+  /// The estimates' start heading is the site frame's gauge (no sun reading in the log, or the
+  /// sun switched off): every trajectory is turned about the vertical through its start onto the
+  /// truth's start heading before the metrics, as it is translated onto the truth's start
+  /// position (docs/evaluation.md). The ATE aligns on its own either way.
+  bool heading_is_gauge = false;
 };
 
 /// The metrics of one trajectory (conventions above). An empty trajectory gives no metrics.

@@ -87,6 +87,13 @@ inline std::array<NamedStream, 7> logStreams(const TraverseLog& log) {
            {"gps.csv", opt(log.gps)}}};
 }
 
+/// Whether sun.csv exists and holds a valid reading (valid = 1): without one nothing measures
+/// the heading, and the start's is the site frame's gauge (docs/model.md "Initial state").
+inline bool hasValidSunReading(const std::optional<Stream>& sun) {
+  if (!sun || !sun->has("valid")) return false;
+  return (sun->channel("valid").array() > 0.5).any();
+}
+
 struct ReadOptions {
   bool skip_bad_rows = false;  ///< count and drop malformed rows instead of stopping
   /// A rover.yaml overlay applied over the log's own (io::loadRoverConfig; empty: none), e.g.
