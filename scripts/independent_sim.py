@@ -523,7 +523,7 @@ def generate(a):
     for sg in segs:
         if sg["kind"] != "rest":
             chk = rover.solve_on_plane({c: v for c, v in zip(rover.steer_cols, sg["steer"])})
-            if abs(chk["h"] - sol["h"]) > 1e-9 or np.max(np.abs(chk["susp"] - sol["susp"])) > 1e-9:
+            if abs(chk["h"] - sol["h"]) > 1e-9 or (chk["susp"].size and np.max(np.abs(chk["susp"] - sol["susp"])) > 1e-9):
                 sys.exit("rover: steering moves the suspension on the plane; not supported")
     t_end = segs[-1]["t1"]
     slip = None
