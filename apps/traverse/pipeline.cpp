@@ -262,6 +262,16 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
                            [&](const io::Finding& g) { return g.file == c.file; });
     diagnostics.findings.insert(at, f);
   }
+  // A noise the rests refuted: one finding per sensor, before that file's others.
+  for (const est::RestNoise& n : e.noise) {
+    io::Finding f;
+    f.file = n.file, f.kind = "noise", f.t = n.t;
+    f.column = n.column, f.value = n.measured;  // metrics.json: the measured σ
+    f.message = n.message();
+    auto at = std::find_if(diagnostics.findings.begin(), diagnostics.findings.end(),
+                           [&](const io::Finding& g) { return g.file == n.file; });
+    diagnostics.findings.insert(at, f);
+  }
   for (io::Finding& f : diagnostics.findings) {
     for (const io::Finding& r : e.rejected) {
       if (r.file == f.file && r.t == f.t && r.kind == f.kind && r.column == f.column) {

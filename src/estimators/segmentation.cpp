@@ -416,7 +416,10 @@ void testRestRuns(const io::TraverseLog& log, const SegmentationOptions& o,
 
 }  // namespace
 
-Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& o) {
+Segmentation segment(const io::TraverseLog& log, const SegmentationOptions& options) {
+  SegmentationOptions o = options;
+  o.gyro_threshold_rad_s =
+      std::max(o.gyro_threshold_rad_s, o.gyro_threshold_noise_sigmas * log.config.gyro.noise_rad_s);
   Segmentation seg;
   const io::Stream& g = log.gyro;
   seg.gyro_t = g.t;

@@ -144,9 +144,18 @@ double odometryScaleVariance(const io::TraverseLog& log) {
 Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
                    const io::Diagnostics* diagnostics) {
   Estimates e;
-  const io::TraverseLog screened = screenedLog(input, config, diagnostics, e);
+  io::TraverseLog screened = screenedLog(input, config, diagnostics, e);
+  e.segmentation = est::segment(screened, config.segmentation);
+  if (config.measure_rest_noise) {
+    // A noise the rests refute is replaced before anything assumes it — the rest test of the
+    // segmentation included, which runs again.
+    e.noise = est::restNoise(screened);
+    if (!e.noise.empty()) {
+      screened = est::withRestNoise(screened, e.noise);
+      e.segmentation = est::segment(screened, config.segmentation);
+    }
+  }
   const io::TraverseLog& log = screened;
-  e.segmentation = est::segment(log, config.segmentation);
   e.init = est::initialState(log, e.segmentation, config.init);
   using Clock = std::chrono::steady_clock;
   auto seconds = [](Clock::time_point a) {

@@ -21,6 +21,10 @@ namespace traverse::est {
 struct SegmentationOptions {
   int mean_window = 30;
   double gyro_threshold_rad_s = 0.5 * M_PI / 180.0;
+  /// ... and never below this many σ of the gyro's declared white noise: Nickels' 0.5 °/s is
+  /// 2.8 σ of Rocky-7's QRS-11 (0.0031 rad/s), so a noisier gyro keeps that false-alarm rate
+  /// instead of flagging every sample (a gyro ten times noisier left no rest at all).
+  double gyro_threshold_noise_sigmas = 2.8;
   int enter_count = 5;
   int leave_count = 30;
   double wheel_speed_threshold_mps = 0.002;

@@ -68,8 +68,8 @@ struct Finding {
 
 /// Every kind, in the order metrics.json lists them.
 inline const std::vector<std::string> kFindingKinds = {
-    "gap",   "time_order", "rate_change", "no_overlap",      "late_start",  "early_end",
-    "stuck", "spike",      "sun_invalid", "sun_out_of_view", "clock_offset"};
+    "gap",   "time_order", "rate_change", "no_overlap",      "late_start",   "early_end",
+    "stuck", "spike",      "sun_invalid", "sun_out_of_view", "clock_offset", "noise"};
 
 struct Diagnostics {
   std::vector<Finding> findings;  ///< by stream in the contract's file order, then by time

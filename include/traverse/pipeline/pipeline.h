@@ -9,6 +9,7 @@
 #include "traverse/estimators/clock_offset.h"
 #include "traverse/estimators/dead_reckoning.h"
 #include "traverse/estimators/ekf.h"
+#include "traverse/estimators/rest_noise.h"
 #include "traverse/estimators/segments_output.h"
 #include "traverse/io/diagnostics.h"
 #include "traverse/smoother/smoother.h"
@@ -45,6 +46,9 @@ struct PipelineConfig {
   /// A known offset of joints.csv's clock (s, + = its stamps late) to remove instead of
   /// estimating any.
   std::optional<double> joints_clock_offset_s;
+  /// Measure the gyro's and accelerometer's white noise at the rests and use it where it refutes
+  /// rover.yaml's (est::restNoise): the estimators then assume the noise the data have.
+  bool measure_rest_noise = true;
   smoother::SmootherOptions smoother;
 };
 
@@ -70,6 +74,9 @@ struct Estimates {
   /// Every stream whose clock was found off and moved (est::estimateClockAlignment: joints.csv
   /// as above, or gyro.csv / accel.csv alone, and sun.csv), when align_joints_clock.
   est::ClockAlignment clocks;
+  /// The inertial noise the rests refuted (est::restNoise), when measure_rest_noise: the
+  /// estimators ran with the measured σ.
+  std::vector<est::RestNoise> noise;
   /// Variance (fraction²) of the wheels' mean rolling-radius scale that rover.yaml declares
   /// (io::OdometryConfig), carried in every estimator's position covariance
   /// (est::addOdometryScaleCovariance); 0 when it declares none.
