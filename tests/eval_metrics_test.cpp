@@ -250,7 +250,6 @@ TEST(EvalMetrics, YawRotationAboutStart) {
   EXPECT_NEAR(metric(m, "rpe_pct_per_m"), 0.0, kTol);
 }
 
-
 TEST(EvalMetrics, AnUnmeasuredStartHeadingIsTurnedOntoTheTruthsLikeTheStartPosition) {
   // No sun: the estimate starts at heading 0 (the gauge) where the truth starts at 20°, and
   // elsewhere (the start position is a gauge too). Turned about its start onto the truth's start
