@@ -1192,6 +1192,7 @@ TEST(SmootherResidualCollector, EqualFunctorsShareACostFunctionAndTheCostIsCeres
             {n.xi, 6, {node, C::kContact, 6}, nullptr},
             {n.b, 3, {node, C::bias(6), 3}, nullptr},
             {},
+            {},
             {}};
   }
   ceres::CauchyLoss loss(1.0);

@@ -105,7 +105,9 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       kc_(I::commonSlip(nw_)),
       na_(config.accel.hasBias() ? kAccelBiasStates : 0),
       ka_(I::accelBias(nw_, nc_)),
-      n_(ekfStates(nw_, nc_, na_)) {
+      nk_(config.estimatesIcr() ? kIcrStates : 0),
+      kk_(I::icr(nw_, nc_, na_)),
+      n_(ekfStates(nw_, nc_, na_, nk_)) {
   S_ =
       (three_axis_ ? sensors::GyroAxes::threeAxis() : sensors::GyroAxes::headingOnly()).selection();
   gate2_ = chiSquareQuantile(options.gate_probability, 2);
@@ -160,6 +162,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
     P_(kc_, kc_) = sn.common_longitudinal_mps * sn.common_longitudinal_mps;
     P_(kc_ + 1, kc_ + 1) = sn.common_lateral_mps * sn.common_lateral_mps;
   }
+  if (nk_ > 0) P_(kk_, kk_) = std::pow(config.skid_steer->icrHalfTrackSigma(), 2);
   if (na_ > 0) {
     const Mat3d Sb = Mat3d::Identity() * std::pow(config.accel.bias_sigma_mps2, 2);
     P_.block<3, 3>(ka_, ka_) = Sb;
@@ -296,6 +299,7 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
   }
   if (na_ > 0)
     qc.segment<3>(ka_).setConstant(std::pow(config_.accel.bias_random_walk_mps2_per_sqrt_s, 2));
+  if (nk_ > 0) qc[kk_] = std::pow(config_.skid_steer->icr_half_track_random_walk_m_per_sqrt_s, 2);
 
   if (recording_) {
     if (updating_) {  // the updates since the last propagation made a posterior
@@ -460,6 +464,7 @@ void withStateCount(int n, F&& f) {
     case ekfStates(4, 0, kAccelBiasStates):  // a four-wheel rover with a real IMU
       f.template operator()<ekfStates(4, 0, kAccelBiasStates)>();
       break;
+    // (a skid-steered four-wheel rover with a real IMU, ekfStates(4, 0, 3, 1), is 23 as well)
     default:
       f.template operator()<Eigen::Dynamic>();
       break;
@@ -524,6 +529,7 @@ void Ekf::absorb(const EkfVector& dx) {
   b_ += dx.segment<3>(I::kBias);
   if (nc_ > 0) c_ += dx.segment<2>(kc_);
   if (na_ > 0) ba_ += dx.segment<3>(ka_);
+  if (nk_ > 0) icr_ += dx[kk_];
   // Reset Jacobian of the attitude error: δθ⁺ ≈ (I − ½[dθ]×) δθ.
   const Mat3d G = detail::resetJacobian(dtheta);
   P_.middleRows<3>(I::kTheta) = G * P_.middleRows<3>(I::kTheta);
@@ -532,7 +538,8 @@ void Ekf::absorb(const EkfVector& dx) {
 
 Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample& js, int i,
                          const Twistd* commanded, const Eigen::Matrix<double, 7, 1>& s,
-                         Eigen::Matrix<double, 4, 7>* H, Eigen::Matrix<double, 4, 7>* dt_ds) {
+                         Eigen::Matrix<double, 4, 7>* H, Eigen::Matrix<double, 4, 7>* dt_ds,
+                         double icr_delta, Vec4d* H_icr) {
   const double radius = geometry.wheels[i].radius;
   const Twistd& jt = js.joint_twist[i];
   Eigen::Matrix<double, 4, 7> J;
@@ -540,10 +547,13 @@ Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample
                                                     s.segment<3>(3), s[6], &J);
   const Twistd nominal_twist =
       commanded ? *commanded : rover::nominalBodyTwist(geometry, s[0], s[5]);
-  const double icr = geometry.wheels[i].icr_offset_y;
+  const double side = geometry.wheels[i].icr_side;
+  const double icr = geometry.wheels[i].icr_offset_y + side * icr_delta;
   const Vec4d r = rover::nominalSlip(js.T_body_wheel[i], radius, nominal_twist, jt, icr) - t;
   *H = J;
   if (dt_ds) *dt_ds = J;
+  // The nominal longitudinal slip is ω_z,nominal · (icr_offset_y + side δ).
+  if (H_icr) *H_icr = Vec4d(-side * nominal_twist[5], 0.0, 0.0, 0.0);
   if (!commanded) {
     // The nominal slip follows the estimate: r = nominal(v_x, ω_z) − t(s), so H = ∂t/∂s −
     // ∂nominal/∂s (rover::nominalSlipJacobian, exact: the nominal is affine in (v_x, ω_z)).
@@ -577,8 +587,9 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     s << v_now() + Vec3d(c_.x(), c_.y(), 0.0), omega<double>(w_p_, b_, in), xi_[i];
     Eigen::Matrix<double, 4, 7> J;
     Eigen::Matrix<double, 4, 7> Jt;  // ∂t/∂s: the noise is the constraint's (nominal: exact)
-    const Vec4d r =
-        slipUpdateResidual(geometry_, js, i, has_cmd_ ? &cmd_twist : nullptr, s, &J, &Jt);
+    Vec4d H_icr;
+    const Vec4d r = slipUpdateResidual(geometry_, js, i, has_cmd_ ? &cmd_twist : nullptr, s, &J,
+                                       &Jt, icr_, &H_icr);
     const Eigen::Matrix4d Ri = rover::slipCovariance(config_.slip_noise, js, i, s.head<3>(),
                                                      s.segment<3>(3), Jt.leftCols<6>());
     EkfRows<4> H = EkfRows<4>::Zero(4, n_);
@@ -587,6 +598,7 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * gyroAxes(in);
     H.col(I::kXi + i) = J.col(6);
     if (nc_ > 0) H.block<4, 2>(0, kc_) = J.leftCols<2>();
+    if (nk_ > 0) H.col(kk_) = H_icr;
     ++stats_.slip_updates;
     if (!update<4>(r, H, Ri, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
   }
@@ -608,7 +620,7 @@ void Ekf::commonSlipJump(const JointSample& js, const EkfInputs& in, const Twist
     if (!js.wheelUsed(i)) continue;
     s[6] = xi_[i];
     Eigen::Matrix<double, 4, 7> H, Jt;
-    const Vec4d r = slipUpdateResidual(geometry_, js, i, commanded, s, &H, &Jt);
+    const Vec4d r = slipUpdateResidual(geometry_, js, i, commanded, s, &H, &Jt, icr_);
     const Eigen::Matrix4d Ri = rover::slipCovariance(config_.slip_noise, js, i, s.head<3>(),
                                                      s.segment<3>(3), Jt.leftCols<6>());
     const Mat3d Rl = Jt.block<3, 3>(0, 0).transpose();  // ∂t/∂v = R_lᵀ
@@ -734,6 +746,7 @@ TrajectoryNode Ekf::nodeOf(const EkfState& s, const EkfMatrix& P, double t,
     n.accel_bias = s.accel_bias;
     n.accel_bias_sigma = P.block<3, 3>(ka_, ka_).diagonal().cwiseSqrt();
   }
+  if (nk_ > 0) n.icr = s.icr, n.icr_sigma = std::sqrt(P(kk_, kk_));
   n.covariance.topLeftCorner<3, 3>() = P.block<3, 3>(I::kPos, I::kPos);
   n.covariance.bottomRightCorner<3, 3>() = P.block<3, 3>(I::kTheta, I::kTheta);
   n.covariance.topRightCorner<3, 3>() = P.block<3, 3>(I::kPos, I::kTheta);

@@ -10,9 +10,9 @@ namespace traverse::est {
 using I = EkfIndex;
 
 EkfVector ekfStateDifference(const EkfState& a, const EkfState& b, int wheels, bool common_slip,
-                             bool accel_bias) {
-  const int nc = common_slip ? kCommonSlipStates : 0;
-  EkfVector d = EkfVector::Zero(ekfStates(wheels, nc, accel_bias ? kAccelBiasStates : 0));
+                             bool accel_bias, bool icr) {
+  const int nc = common_slip ? kCommonSlipStates : 0, na = accel_bias ? kAccelBiasStates : 0;
+  EkfVector d = EkfVector::Zero(ekfStates(wheels, nc, na, icr ? kIcrStates : 0));
   d.segment<3>(I::kTheta) = so3::boxminus(a.q_site_body, b.q_site_body);
   d.segment<3>(I::kRate) = a.w_p - b.w_p;
   d.segment<3>(I::kPos) = a.p_site - b.p_site;
@@ -21,12 +21,13 @@ EkfVector ekfStateDifference(const EkfState& a, const EkfState& b, int wheels, b
   d.segment(I::kXi, wheels) = a.xi.head(wheels) - b.xi.head(wheels);
   if (common_slip) d.segment<2>(I::commonSlip(wheels)) = a.common_slip - b.common_slip;
   if (accel_bias) d.segment<3>(I::accelBias(wheels, nc)) = a.accel_bias - b.accel_bias;
+  if (icr) d[I::icr(wheels, nc, na)] = a.icr - b.icr;
   return d;
 }
 
 EkfState ekfStatePlus(const EkfState& x, const EkfVector& delta, int wheels, bool common_slip,
-                      bool accel_bias) {
-  const int nc = common_slip ? kCommonSlipStates : 0;
+                      bool accel_bias, bool icr) {
+  const int nc = common_slip ? kCommonSlipStates : 0, na = accel_bias ? kAccelBiasStates : 0;
   EkfState out = x;
   out.q_site_body = so3::boxplus(x.q_site_body, Vec3d(delta.segment<3>(I::kTheta))).normalized();
   out.w_p += delta.segment<3>(I::kRate);
@@ -36,6 +37,7 @@ EkfState ekfStatePlus(const EkfState& x, const EkfVector& delta, int wheels, boo
   out.xi.head(wheels) += delta.segment(I::kXi, wheels);
   if (common_slip) out.common_slip += delta.segment<2>(I::commonSlip(wheels));
   if (accel_bias) out.accel_bias += delta.segment<3>(I::accelBias(wheels, nc));
+  if (icr) out.icr += delta[I::icr(wheels, nc, na)];
   return out;
 }
 
@@ -61,7 +63,8 @@ Eigen::MatrixXd gain(const Eigen::MatrixXd& P, const Eigen::MatrixXd& phi,
 
 }  // namespace
 
-RtsStates rtsBackward(const RtsChain& chain, int wheels, bool common_slip, bool accel_bias) {
+RtsStates rtsBackward(const RtsChain& chain, int wheels, bool common_slip, bool accel_bias,
+                      bool icr) {
   RtsStates s;
   const size_t n = chain.points.size();
   s.x.resize(n);
@@ -73,8 +76,8 @@ RtsStates rtsBackward(const RtsChain& chain, int wheels, bool common_slip, bool 
     const RtsPoint& p = chain.points[k];
     const Eigen::MatrixXd C = gain(p.P_post, p.phi, p.P_prior);
     const EkfVector delta =
-        ekfStateDifference(s.x[k + 1], p.prior, wheels, common_slip, accel_bias);
-    s.x[k] = ekfStatePlus(p.posterior, EkfVector(C * delta), wheels, common_slip, accel_bias);
+        ekfStateDifference(s.x[k + 1], p.prior, wheels, common_slip, accel_bias, icr);
+    s.x[k] = ekfStatePlus(p.posterior, EkfVector(C * delta), wheels, common_slip, accel_bias, icr);
     Eigen::MatrixXd P = p.P_post + C * (s.P[k + 1] - p.P_prior) * C.transpose();
     s.P[k] = 0.5 * (P + P.transpose());
   }
@@ -84,7 +87,8 @@ RtsStates rtsBackward(const RtsChain& chain, int wheels, bool common_slip, bool 
 Trajectory rtsSmooth(const Ekf& ekf, const RtsChain& chain) {
   const int wheels =
       static_cast<int>(chain.points.empty() ? 0 : chain.points[0].posterior.xi.size());
-  const RtsStates s = rtsBackward(chain, wheels, ekf.hasCommonSlip(), ekf.hasAccelBias());
+  const RtsStates s =
+      rtsBackward(chain, wheels, ekf.hasCommonSlip(), ekf.hasAccelBias(), ekf.hasIcr());
   Trajectory tr;
   tr.name = "rts";
   tr.has_covariance = true;

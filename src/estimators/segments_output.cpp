@@ -15,6 +15,8 @@ void writeSegments(const std::filesystem::path& file, const std::vector<SegmentR
     text +=
         ",accel_bias_x,accel_bias_y,accel_bias_z,sigma_accel_bias_x,sigma_accel_bias_y,"
         "sigma_accel_bias_z";
+  const bool icr = !rows.empty() && rows.front().icr.has_value();
+  if (icr) text += ",icr_half_track_error_m,sigma_icr_half_track_error_m";
   text += "\n";
   char buf[32];
   auto num = [&](double v) { text.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr); };
@@ -36,6 +38,7 @@ void writeSegments(const std::filesystem::path& file, const std::vector<SegmentR
       for (int i = 0; i < 3; ++i) text += ",", num(b[i]);
       for (int i = 0; i < 3; ++i) text += ",", num(r.sigma_accel_bias[i]);
     }
+    if (icr) text += ",", num(r.icr.value_or(0.0)), text += ",", num(r.sigma_icr);
     text += "\n";
   }
   io::writeFileAtomically(file, text);

@@ -146,11 +146,19 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
   if (sn.hasCommonSlip() && !(sn.common_longitudinal_mps > 0 && sn.common_lateral_mps > 0))
     r.fail(s, "slip_noise",
            "common_longitudinal_mps and common_lateral_mps must both be > 0 when either is");
-  const YAML::Node ss = r.section(root, "skid_steer", {"icr_y_left_m", "icr_y_right_m"});
+  const YAML::Node ss = r.section(root, "skid_steer",
+                                  {"icr_y_left_m", "icr_y_right_m", "icr_half_track_sigma_m",
+                                   "icr_half_track_random_walk_m_per_sqrt_s"});
   if (root["skid_steer"].IsDefined() && !root["skid_steer"].IsNull()) {
     SkidSteerConfig k;
     k.icr_y_left_m = r.number(ss, "skid_steer", "icr_y_left_m", 0.0, 0.0, 100.0);
     k.icr_y_right_m = r.number(ss, "skid_steer", "icr_y_right_m", 0.0, -100.0, 0.0);
+    if (ss["icr_half_track_sigma_m"].IsDefined())
+      k.icr_half_track_sigma_m =
+          r.number(ss, "skid_steer", "icr_half_track_sigma_m", 0.0, 0.0, 100.0);
+    k.icr_half_track_random_walk_m_per_sqrt_s =
+        r.number(ss, "skid_steer", "icr_half_track_random_walk_m_per_sqrt_s",
+                 k.icr_half_track_random_walk_m_per_sqrt_s, 0.0, 100.0);
     if (!ss["icr_y_left_m"].IsDefined() || !ss["icr_y_right_m"].IsDefined())
       r.fail(ss, "skid_steer", "needs both icr_y_left_m and icr_y_right_m");
     c.skid_steer = k;
@@ -407,7 +415,12 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   if (c.skid_steer) {
     out << YAML::Key << "skid_steer" << YAML::Value << YAML::BeginMap << YAML::Key << "icr_y_left_m"
         << YAML::Value << num(c.skid_steer->icr_y_left_m) << YAML::Key << "icr_y_right_m"
-        << YAML::Value << num(c.skid_steer->icr_y_right_m) << YAML::EndMap;
+        << YAML::Value << num(c.skid_steer->icr_y_right_m);
+    if (c.skid_steer->icr_half_track_sigma_m)
+      out << YAML::Key << "icr_half_track_sigma_m" << YAML::Value
+          << num(*c.skid_steer->icr_half_track_sigma_m);
+    out << YAML::Key << "icr_half_track_random_walk_m_per_sqrt_s" << YAML::Value
+        << num(c.skid_steer->icr_half_track_random_walk_m_per_sqrt_s) << YAML::EndMap;
   }
   if (!c.odometry.isDefault()) {  // absent = the default: existing files unchanged
     out << YAML::Key << "odometry" << YAML::Value << YAML::BeginMap << YAML::Key

@@ -267,6 +267,7 @@ rover::RoverGeometry parseRoverGeometry(const std::string& xml, const RoverConfi
              "' is on the body's centre line (no side)");
       geo.wheels[w].icr_offset_y =
           (y > 0 ? config.skid_steer->icr_y_left_m : config.skid_steer->icr_y_right_m) - y;
+      geo.wheels[w].icr_side = y > 0 ? 1.0 : -1.0;
     }
   }
   if (config.turn_centre_x_m) {

@@ -11,8 +11,8 @@ using est::RestWindow;
 using est::Segment;
 using est::TrajectoryNode;
 
-std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& tr,
-                                    bool accel_bias) {
+std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& tr, bool accel_bias,
+                                    bool icr) {
   std::vector<SegmentRow> rows;
   for (size_t s = 0; s < seg.segments.size(); ++s) {
     const Segment& sg = seg.segments[s];
@@ -26,6 +26,7 @@ std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& t
       const TrajectoryNode& n = it == tr.nodes.end() ? tr.nodes.back() : *it;
       r.bias = n.bias, r.sigma_bias = n.bias_sigma;
       if (accel_bias) r.accel_bias = n.accel_bias, r.sigma_accel_bias = n.accel_bias_sigma;
+      if (icr) r.icr = n.icr, r.sigma_icr = n.icr_sigma;
     }
     if (sg.kind == Segment::Kind::kRest) {
       const RestWindow& w = seg.rests[static_cast<size_t>(sg.rest_index)];
@@ -168,7 +169,8 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
   e.ekf = est::runEkf(log, e.segmentation, e.init, config.ekf);
   e.seconds.rts = e.ekf.rts_seconds;
   e.seconds.ekf = seconds(t0) - e.seconds.rts;
-  e.segments = segmentRows(e.segmentation, e.ekf.trajectory, log.config.accel.hasBias());
+  e.segments = segmentRows(e.segmentation, e.ekf.trajectory, log.config.accel.hasBias(),
+                           log.config.estimatesIcr());
   if (config.smooth) {
     smoother::SmootherOptions so = config.smoother;
     // kAuto follows the EKF's choice: when the EKF gave up the accelerometer-driven velocity

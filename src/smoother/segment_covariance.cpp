@@ -23,7 +23,8 @@ bool segmentCovariance(const ResidualCollector& residuals, std::span<const NodeH
   const int common = nodes.front().c.place.size;
   const int node_dim = NodeColumns::states(wheels, common) + (node_bias ? bias.place.size : 0);
   const BlockHandle& accel_bias = nodes.front().ba;  // size 0 without
-  const int global_dim = (node_bias ? 0 : bias.place.size) + accel_bias.place.size;
+  const BlockHandle& icr = nodes.front().icr;        // size 0 without
+  const int global_dim = (node_bias ? 0 : bias.place.size) + accel_bias.place.size + icr.place.size;
   ChainInformation H = makeChainInformation(static_cast<int>(nodes.size()), node_dim, global_dim);
   std::vector<double> jacobian;
   std::array<ChainPlace, kMaxBlocksPerResidual> places;
@@ -65,6 +66,8 @@ bool segmentCovariance(const ResidualCollector& residuals, std::span<const NodeH
       const int c = accel_bias.place.col;
       node.accel_bias_sigma = m.global.block<3, 3>(c, c).diagonal().cwiseMax(0.0).cwiseSqrt();
     }
+    if (icr.size > 0)
+      node.icr_sigma = std::sqrt(std::max(m.global(icr.place.col, icr.place.col), 0.0));
   }
   return true;
 }

@@ -120,6 +120,7 @@ class SegmentBuilder {
         nw_(d.log.geometry.numWheels()),
         nc_(d.log.config.slip_noise.hasCommonSlip() ? 2 : 0),
         na_(d.log.config.accel.hasBias() && d.log.accel ? 3 : 0),
+        nk_(d.log.config.estimatesIcr() ? 1 : 0),
         contact_memo_(static_cast<size_t>(nw_)) {
     ceres::Problem::Options po;
     // The builder owns every cost function (residuals_), loss and manifold: a Problem that owns
@@ -184,9 +185,11 @@ class SegmentBuilder {
   int nw_;  ///< wheels
   int nc_;  ///< common slip states per node (0 or 2)
   int na_;  ///< the segment's accelerometer-bias states (0 or 3)
+  int nk_;  ///< the segment's ICR half-track error (0 or 1)
   std::vector<NodeBlocks> nodes_;
   double segment_bias_[3] = {0, 0, 0};
   double segment_accel_bias_[3] = {0, 0, 0};  ///< b_a (body, m/s²), one per segment
+  double segment_icr_ = 0.0;                  ///< δ (m), one per segment
   std::vector<NodeHandles> handles_;          ///< per node; never resized once made
   std::vector<unsigned char> rest_;           ///< node inside a rest window's trimmed part
   Eigen::Index sun_next_ = 0;                 ///< next sun reading addSunResiduals looks at
@@ -233,6 +236,8 @@ void SegmentBuilder::seedStates() {
   Eigen::Map<Vec3d>{segment_bias_} = seedNode(n_ / 2).bias;
   // The accelerometer's bias: the EKF's at the segment's start (its prior there, addStartPriors).
   Eigen::Map<Vec3d>{segment_accel_bias_} = seedNode(0).accel_bias;
+  // The ICRs: the EKF's in the segment's middle (it has seen the segment's first turns).
+  segment_icr_ = seedNode(n_ / 2).icr;
 }
 
 void SegmentBuilder::makeHandles() {
@@ -248,6 +253,11 @@ void SegmentBuilder::makeHandles() {
                             {ChainPlace::kGlobal, randomWalkBias() ? 0 : bias_dim, 3},
                             nullptr}
               : BlockHandle{};
+  // δ: the last global column.
+  const int icr_col = (randomWalkBias() ? 0 : bias_dim) + na_;
+  const BlockHandle icr =
+      nk_ > 0 ? BlockHandle{&segment_icr_, 1, {ChainPlace::kGlobal, icr_col, 1}, nullptr}
+              : BlockHandle{};
   handles_.resize(n_);
   for (size_t k = 0; k < n_; ++k) {
     NodeBlocks& b = nodes_[k];
@@ -261,7 +271,8 @@ void SegmentBuilder::makeHandles() {
         randomWalkBias() ? BlockHandle{b.b, 3, {node, C::bias(nw_, nc_), bias_dim}, bias_manifold}
                          : segment_bias,
         nc_ > 0 ? BlockHandle{b.c, nc_, {node, C::commonSlip(nw_), nc_}, nullptr} : BlockHandle{},
-        accel_bias};
+        accel_bias,
+        icr};
   }
 }
 
@@ -323,6 +334,7 @@ void SegmentBuilder::addParameterBlocks() {
   }
   if (!randomWalkBias()) add(handles_.front().bias);
   if (na_ > 0) add(handles_.front().ba);
+  if (nk_ > 0) add(handles_.front().icr);
 }
 
 void SegmentBuilder::addProcessResiduals(size_t k) {
@@ -484,6 +496,12 @@ void SegmentBuilder::addStartPriors() {
     addAccelBiasPrior(residuals_, s.accel_bias,
                       overSegment(s.accel_bias_sigma, cfg_.accel.bias_random_walk_mps2_per_sqrt_s),
                       handles_[0]);
+  // The ICRs likewise: the EKF's δ at the first node has seen the turns before the segment only.
+  if (nk_ > 0) {
+    const double rw = cfg_.skid_steer->icr_half_track_random_walk_m_per_sqrt_s;
+    addIcrPrior(residuals_, s.icr, std::sqrt(s.icr_sigma * s.icr_sigma + rw * rw * duration),
+                handles_[0]);
+  }
 }
 
 SegmentSolution SegmentBuilder::solve() {
@@ -558,6 +576,7 @@ SegmentSolution SegmentBuilder::solve() {
     node.bias = Eigen::Map<const Vec3d>(randomWalkBias() ? b.b : segment_bias_);
     if (nc_ > 0) node.common_slip = Eigen::Map<const Vec2d>(b.c);
     if (na_ > 0) node.accel_bias = Eigen::Map<const Vec3d>(segment_accel_bias_);
+    if (nk_ > 0) node.icr = segment_icr_;
   }
   if (sum.status != SegmentStatus::kFallbackEkf && o_.covariance) {
     const auto tc = std::chrono::steady_clock::now();

@@ -46,6 +46,8 @@ ceres::Solver::Options segmentSolverOptions(const SmootherOptions& o,
       ordering->AddElementToGroup(bias.data, static_cast<int>(nodes.size()));
     if (nodes.front().ba.size > 0)
       ordering->AddElementToGroup(nodes.front().ba.data, static_cast<int>(nodes.size()));
+    if (nodes.front().icr.size > 0)
+      ordering->AddElementToGroup(nodes.front().icr.data, static_cast<int>(nodes.size()));
     so.linear_solver_ordering = ordering;
   }
   return so;

@@ -162,6 +162,7 @@ SmootherResult smooth(const io::TraverseLog& log, const est::Segmentation& seg,
     sum.bias = sol.bias, sum.bias_sigma = sol.bias_sigma;
     const est::TrajectoryNode& mid = sol.nodes[sol.nodes.size() / 2];
     sum.accel_bias = mid.accel_bias, sum.accel_bias_sigma = mid.accel_bias_sigma;
+    sum.icr = mid.icr, sum.icr_sigma = mid.icr_sigma;
     result.segments.push_back(sum);
   }
   // A shared rest window is reported by the later segment: count each node once.
@@ -188,6 +189,7 @@ std::vector<est::SegmentRow> smootherSegmentRows(const std::vector<est::SegmentR
       est::SegmentRow& row = rows[r];
       row.bias = s.bias, row.sigma_bias = s.bias_sigma;
       if (row.accel_bias) row.accel_bias = s.accel_bias, row.sigma_accel_bias = s.accel_bias_sigma;
+      if (row.icr) row.icr = s.icr, row.sigma_icr = s.icr_sigma;
       row.status = toString(s.status);
       row.iterations = s.iterations;
       row.final_cost = s.final_cost;

@@ -32,14 +32,16 @@
 namespace traverse::est {
 
 /// Size of the error state of a rover with `wheels` wheels, `common_slip` (0 or 2) common slip
-/// states and `accel_bias` (0 or 3) accelerometer-bias states, and its largest value.
-constexpr int ekfStates(int wheels, int common_slip = 0, int accel_bias = 0) {
-  return 15 + wheels + common_slip + accel_bias;
+/// states, `accel_bias` (0 or 3) accelerometer-bias states and `icr` (0 or 1) ICR half-track
+/// states, and its largest value.
+constexpr int ekfStates(int wheels, int common_slip = 0, int accel_bias = 0, int icr = 0) {
+  return 15 + wheels + common_slip + accel_bias + icr;
 }
 inline constexpr int kCommonSlipStates = 2;
 inline constexpr int kAccelBiasStates = 3;
+inline constexpr int kIcrStates = 1;
 inline constexpr int kMaxEkfStates =
-    ekfStates(rover::kMaxWheels, kCommonSlipStates, kAccelBiasStates);
+    ekfStates(rover::kMaxWheels, kCommonSlipStates, kAccelBiasStates, kIcrStates);
 /// Error-state vectors and matrices: fixed storage (no heap), size ekfStates(wheels).
 using EkfVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxEkfStates, 1>;
 using EkfMatrix =
@@ -51,12 +53,15 @@ using EkfRows = Eigen::Matrix<double, M, Eigen::Dynamic, M == 1 ? Eigen::RowMajo
 template <int M>
 using EkfCols = Eigen::Matrix<double, Eigen::Dynamic, M, 0, kMaxEkfStates, M>;
 
-/// Offsets of the error-state blocks (ξ, c and b_a last: their offsets depend on the rover's
-/// wheel count; c starts at commonSlip(N), b_a at accelBias(N, C)).
+/// Offsets of the error-state blocks (ξ, c, b_a and δ last: their offsets depend on the rover's
+/// wheel count; c starts at commonSlip(N), b_a at accelBias(N, C), δ at icr(N, C, A)).
 struct EkfIndex {
   static constexpr int kTheta = 0, kRate = 3, kPos = 6, kVel = 9, kBias = 12, kXi = 15;
   static constexpr int commonSlip(int wheels) { return kXi + wheels; }
   static constexpr int accelBias(int wheels, int common_slip) { return kXi + wheels + common_slip; }
+  static constexpr int icr(int wheels, int common_slip, int accel_bias) {
+    return kXi + wheels + common_slip + accel_bias;
+  }
 };
 
 struct EkfOptions {
@@ -127,6 +132,8 @@ struct EkfState {
   Vec3d bias = Vec3d::Zero();         ///< gyro bias b
   Vec2d common_slip = Vec2d::Zero();  ///< c (body x, y; zero without the state)
   Vec3d accel_bias = Vec3d::Zero();   ///< b_a (body, m/s²; zero without the state)
+  /// δ: the skid-steer ICRs' half-track error (m; io::SkidSteerConfig; zero without the state).
+  double icr = 0.0;
 };
 
 /// What a Rauch–Tung–Striebel pass over the filter needs (rts.h), recorded while it runs: the
@@ -209,18 +216,22 @@ class Ekf {
   const EkfMatrix& covariance() const { return P_; }
   /// Replaces the covariance (tests; P must be symmetric positive semi-definite).
   void setCovariance(const EkfMatrix& P) { P_ = P; }
-  EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_, c_, ba_}; }
+  EkfState state() const { return {q_, w_p_, x_, v_p_, xi_, b_, c_, ba_, icr_}; }
   /// Size of the error state: ekfStates(wheels, common slip states, accelerometer-bias states).
   int numStates() const { return n_; }
   /// Whether the state has the common slip c (rover.yaml declares its σ).
   bool hasCommonSlip() const { return nc_ > 0; }
   /// Whether the state has the accelerometer's bias b_a (rover.yaml declares its σ).
   bool hasAccelBias() const { return na_ > 0; }
+  /// Whether the state has the ICR half-track error δ (a skid-steer rover whose rover.yaml
+  /// gives it a σ > 0).
+  bool hasIcr() const { return nk_ > 0; }
   /// Replaces the nominal state (tests).
   void setState(const EkfState& s) {
     q_ = s.q_site_body, w_p_ = s.w_p, x_ = s.p_site, v_p_ = s.v_p, xi_ = s.xi, b_ = s.bias;
     c_ = nc_ > 0 ? s.common_slip : Vec2d::Zero();
     ba_ = na_ > 0 ? s.accel_bias : Vec3d::Zero();
+    icr_ = nk_ > 0 ? s.icr : 0.0;
   }
 
   /// Body rate and velocity of the current estimate (templated so Jets differentiate them).
@@ -269,9 +280,10 @@ class Ekf {
   rover::WheelVectord xi_;
   Vec2d c_ = Vec2d::Zero();
   Vec3d ba_ = Vec3d::Zero();
+  double icr_ = 0.0;
   /// Wheels, common slip states (0, 2) and their offset, accelerometer-bias states (0, 3) and
-  /// their offset, error-state size.
-  int nw_, nc_, kc_, na_, ka_, n_;
+  /// their offset, ICR states (0, 1) and their offset, error-state size.
+  int nw_, nc_, kc_, na_, ka_, nk_, kk_, n_;
   EkfMatrix P_;
   EkfStats stats_;
   // RTS recording (startRecording): Φ since the latest posterior, whether updates followed it.
@@ -317,11 +329,14 @@ std::vector<JointSample> jointSamples(const io::TraverseLog& log);
 /// H = −∂r/∂s, the measurement Jacobian of the EKF's slip update. The nominal slip comes from
 /// the commanded twist when there is one (`commanded`), otherwise from the state itself
 /// (v_x, ω_z), and is then differentiated with the constraint. `dt_ds` (optional): ∂t/∂s of
-/// the constraint alone, which carries the joint noise (rover::slipCovariance).
+/// the constraint alone, which carries the joint noise (rover::slipCovariance). `icr`: the ICRs'
+/// half-track error δ (skid steering: the wheel's ICR offset is icr_offset_y + icr_side δ);
+/// `H_icr` (optional): −∂r/∂δ.
 Vec4d slipUpdateResidual(const rover::RoverGeometry& geometry, const JointSample& js, int wheel,
                          const Twistd* commanded, const Eigen::Matrix<double, 7, 1>& s,
                          Eigen::Matrix<double, 4, 7>* H,
-                         Eigen::Matrix<double, 4, 7>* dt_ds = nullptr);
+                         Eigen::Matrix<double, 4, 7>* dt_ds = nullptr, double icr = 0.0,
+                         Vec4d* H_icr = nullptr);
 
 /// Building blocks of Ekf, exposed so that tests check each against its dense textbook form
 /// (tests/est_ekf_process_jacobian_test.cpp).

@@ -21,6 +21,10 @@ struct SegmentRow {
   /// segment's constant. Unset: no such columns.
   std::optional<Vec3d> accel_bias;
   Vec3d sigma_accel_bias = Vec3d::Zero();
+  /// The skid-steer ICRs' half-track error δ (m) and its σ, when estimated
+  /// (io::SkidSteerConfig): as accel_bias. Unset: no such columns.
+  std::optional<double> icr;
+  double sigma_icr = 0.0;
   std::string status;  ///< converged | no_convergence | fallback_ekf; empty without a smoother
   std::optional<int> iterations;
   std::optional<double> final_cost, solve_seconds;
@@ -28,7 +32,8 @@ struct SegmentRow {
 
 /// Writes the rows atomically (empty fields where a value does not apply). When the rows carry
 /// the accelerometer's bias, six columns follow solve_seconds: accel_bias_x, _y, _z and
-/// sigma_accel_bias_x, _y, _z (m/s²).
+/// sigma_accel_bias_x, _y, _z (m/s²). When they carry the ICRs' half-track error, two columns
+/// follow: icr_half_track_error_m, sigma_icr_half_track_error_m.
 void writeSegments(const std::filesystem::path& file, const std::vector<SegmentRow>& rows);
 
 }  // namespace traverse::est

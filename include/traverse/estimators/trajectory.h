@@ -31,6 +31,8 @@ struct TrajectoryNode {
   /// The accelerometer's bias b_a (body, m/s²) and its 1σ when the estimator carries it
   /// (rover.yaml accelerometer.bias_sigma_mps2), else zero (not written to the node files).
   Vec3d accel_bias = Vec3d::Zero(), accel_bias_sigma = Vec3d::Zero();
+  /// The skid-steer ICRs' half-track error δ and its σ (m; zero without the state).
+  double icr = 0.0, icr_sigma = 0.0;
 };
 
 struct Trajectory {

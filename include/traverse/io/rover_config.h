@@ -119,9 +119,23 @@ struct GpsConfig {
 /// sets (Mandow et al. 2007): a side's wheels roll at r ψ̇ = v_x − ω_z y_ICR of that side, so a
 /// wheel at body y has the nominal longitudinal slip ω_z (y_ICR − y). The ICRs' x is
 /// turn_centre_x_m. Without this section y_ICR is each wheel's own y (no such slip).
+///
+/// Where the ICRs lie depends on the ground (Mandow et al. measure them move by tens of per
+/// cent between surfaces), so the estimators carry the error of their half-track as a state δ:
+/// y_ICR,L = icr_y_left_m + δ, y_ICR,R = icr_y_right_m − δ, a random walk from N(0, σ²). An ICR
+/// error is a yaw-rate error of every wheel at once, proportional to the turn — were it left
+/// in the slip rows' white noise, the rows would pull the yaw away from the gyro in every turn.
 struct SkidSteerConfig {
   double icr_y_left_m = 0.0;   ///< > 0 (body y, left)
   double icr_y_right_m = 0.0;  ///< < 0
+  /// σ of δ (m) at the start of a log; unset: 20 % of the half-track (icr_y_left − icr_y_right)/2.
+  /// 0: the ICRs are exact (no state).
+  std::optional<double> icr_half_track_sigma_m;
+  /// Random-walk density of δ (m/√s): how fast the ground may move the ICRs.
+  double icr_half_track_random_walk_m_per_sqrt_s = 0.001;
+  double icrHalfTrackSigma() const {
+    return icr_half_track_sigma_m.value_or(0.2 * 0.5 * (icr_y_left_m - icr_y_right_m));
+  }
 };
 
 /// Odometry calibration (`traverse calibrate` fits it): the effective rolling radius of the
@@ -176,6 +190,8 @@ struct RoverConfig {
   std::vector<std::pair<std::string, std::string>> joint_names;
   std::optional<double> turn_centre_x_m;  ///< default: mean x of the unsteered wheels
   std::optional<SkidSteerConfig> skid_steer;
+  /// Whether the estimators carry the ICRs' half-track error δ (skid steering with σ > 0).
+  bool estimatesIcr() const { return skid_steer && skid_steer->icrHalfTrackSigma() > 0; }
   OdometryConfig odometry;
   double gravity_mps2 = 9.80665;
   GyroConfig gyro;

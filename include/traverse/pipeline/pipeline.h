@@ -127,8 +127,8 @@ Estimates estimate(const io::TraverseLog& log, const PipelineConfig& config = {}
 /// segments.csv rows from the segmentation and a trajectory with bias estimates: a rest row
 /// carries the window's own bias measurement on the gyro's axes (mean ± standard error), a
 /// motion row the trajectory's bias at the segment's end; with `accel_bias` (the rover declares
-/// it) every row also the accelerometer's bias there.
+/// it) every row also the accelerometer's bias there, and with `icr` the ICRs' half-track error.
 std::vector<SegmentRow> segmentRows(const Segmentation& seg, const Trajectory& trajectory,
-                                    bool accel_bias = false);
+                                    bool accel_bias = false, bool icr = false);
 
 }  // namespace traverse::pipeline

@@ -62,6 +62,9 @@ struct Wheel {
   /// y_ICR − y of the wheel (m, body, at zero joint angles): its nominal longitudinal slip is
   /// ω_z times it (skid steering, io::SkidSteerConfig; 0 for a wheel that just rolls).
   double icr_offset_y = 0.0;
+  /// How the ICR's half-track error δ moves it (io::SkidSteerConfig): y_ICR = … + icr_side · δ,
+  /// +1 for a left wheel, −1 for a right one, 0 without skid steering.
+  double icr_side = 0.0;
   /// Which side's radius scale the wheel takes (io::OdometryConfig): 1 left (body y > 0 at
   /// zero joint angles), 0 right (y < 0), ½ on the centre line.
   double left_share = 0.5;

@@ -49,8 +49,10 @@ struct NodeColumns {
 /// wheels' common slip (body x, y), size 0 (no storage) when the rover does not declare it.
 /// `ba`: the accelerometer's bias (body, m/s²), one per segment (ChainPlace::kGlobal, after the
 /// constant gyro bias), size 0 when the rover does not declare it or the log has no accel.csv.
+/// `icr`: the skid-steer ICRs' half-track error δ (m, io::SkidSteerConfig), one per segment
+/// (ChainPlace::kGlobal, after b_a), size 0 without it.
 struct NodeHandles {
-  BlockHandle q, x, v, w, xi, bias, c, ba;
+  BlockHandle q, x, v, w, xi, bias, c, ba, icr;
 };
 
 /// The last functor one kind of residual was made from, and its cost function. Nodes are mostly

@@ -101,6 +101,8 @@ struct SegmentSummary {
   /// The accelerometer's bias (body, m/s²) and its σ when the rover declares it (else zero):
   /// the segment's constant, or the EKF's at the segment's middle when it fell back.
   Vec3d accel_bias = Vec3d::Zero(), accel_bias_sigma = Vec3d::Zero();
+  /// The skid-steer ICRs' half-track error δ and its σ (m) when estimated (else zero), likewise.
+  double icr = 0.0, icr_sigma = 0.0;
   SegmentStatus status = SegmentStatus::kFallbackEkf;
   int iterations = 0;
   /// ½ Σ ρ(‖r‖²): at the EKF's states (seed_cost), where Levenberg-Marquardt started (the EKF

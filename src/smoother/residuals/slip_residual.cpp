@@ -30,7 +30,10 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                     Vec4d::Zero(),
                     sqrtInformation<4>(R, "slip"),
                     Eigen::Matrix<double, 4, 2>::Zero(),
-                    Vec2d::Zero()};
+                    Vec2d::Zero(),
+                    geometry.wheels[i].icr_side,
+                    nominal_follows_state,
+                    nominal_twist[5]};
     if (nominal_follows_state) {
       w.nominal_at = Vec2d(v_wheels.x(), seed.w_body.z());
       w.nominal_jacobian =
@@ -46,10 +49,16 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
     if (data.size() == data.capacity())
       throw std::logic_error("smoother: slip data would move under its cost functions");
     data.push_back(w);
-    if (k.c.size > 0)
-      out.add("slip", new SlipResidual(i, nw, &data.back(), true), loss, k.v, k.w, k.xi, k.c);
+    const bool common = k.c.size > 0, has_icr = k.icr.size > 0;
+    auto* f = new SlipResidual(i, nw, &data.back(), common, has_icr);
+    if (common && has_icr)
+      out.add("slip", f, loss, k.v, k.w, k.xi, k.c, k.icr);
+    else if (common)
+      out.add("slip", f, loss, k.v, k.w, k.xi, k.c);
+    else if (has_icr)
+      out.add("slip", f, loss, k.v, k.w, k.xi, k.icr);
     else
-      out.add("slip", new SlipResidual(i, nw, &data.back()), loss, k.v, k.w, k.xi);
+      out.add("slip", f, loss, k.v, k.w, k.xi);
   }
 }
 

@@ -11,6 +11,8 @@
 
 #include <ceres/sized_cost_function.h>
 
+#include <algorithm>
+
 #include "traverse/core/types.h"
 #include "traverse/smoother/residual_collector.h"
 
@@ -60,6 +62,27 @@ inline void addAccelBiasPrior(ResidualCollector& out, const Vec3d& accel_bias, c
                               const NodeHandles& k) {
   const Vec3d s = sigma.cwiseMax(1e-6);
   out.add("accel_bias_prior", new RestBiasResidual(accel_bias, s.cwiseInverse()), nullptr, k.ba);
+}
+
+/// A Gaussian prior on one scalar parameter: r = (x − mean) / σ.
+class ScalarPriorResidual final : public ceres::SizedCostFunction<1, 1> {
+ public:
+  ScalarPriorResidual(double mean, double sigma) : mean_(mean), info_(1.0 / sigma) {}
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    residuals[0] = info_ * (parameters[0][0] - mean_);
+    if (jacobians && jacobians[0]) jacobians[0][0] = info_;
+    return true;
+  }
+
+ private:
+  double mean_, info_;
+};
+
+/// Constraint: a prior on the segment's ICR half-track error δ (k.icr, io::SkidSteerConfig) —
+/// the EKF's estimate at the segment's first node with its σ (floored at 10⁻⁶ m).
+inline void addIcrPrior(ResidualCollector& out, double icr, double sigma, const NodeHandles& k) {
+  out.add("icr_prior", new ScalarPriorResidual(icr, std::max(sigma, 1e-6)), nullptr, k.icr);
 }
 
 }  // namespace traverse::smoother

@@ -20,8 +20,12 @@
 // the nominal being affine in u — so the residual and its Jacobian follow the state instead of
 // holding the seed's nominal (which carried the EKF's yaw-rate error into every slip row).
 //
-// Parameter blocks: v (body, m/s), ω (body, rad/s), ξ (every wheel's contact angle, rad), and
-// with the common slip c (body x, y, m/s).
+// On a skid-steered rover whose ICRs are estimated (io::SkidSteerConfig) the nominal
+// longitudinal slip is ω_z,nom (icr_offset_y + icr_side δ), δ the segment's ICR half-track error:
+// t_nom,0 += icr_side ω_z,nom δ, with ω_z,nom the command's or (no cmd.csv) the state's ω_z.
+//
+// Parameter blocks: v (body, m/s), ω (body, rad/s), ξ (every wheel's contact angle, rad), with
+// the common slip c (body x, y, m/s), and with the ICRs δ (m).
 #pragma once
 
 #include <ceres/cost_function.h>
@@ -48,6 +52,11 @@ struct SlipWheelData {
   /// (zero with cmd.csv: the nominal is the command's, a constant).
   Eigen::Matrix<double, 4, 2> nominal_jacobian = Eigen::Matrix<double, 4, 2>::Zero();
   Vec2d nominal_at = Vec2d::Zero();
+  /// ICR block only: rover::Wheel::icr_side, whether ω_z,nom is the state's (no cmd.csv), and
+  /// the command's ω_z otherwise. nominal_slip is taken at δ = 0.
+  double icr_side = 0.0;
+  bool nominal_follows_state = false;
+  double command_w_z = 0.0;
 };
 
 class SlipResidual final : public ceres::CostFunction {
@@ -65,10 +74,12 @@ class SlipResidual final : public ceres::CostFunction {
         d_(owned_.get()) {
     setSizes(wheels);
   }
-  /// Keeps its own copy of `data` (a nominal that follows the state included).
-  SlipResidual(int wheel, int wheels, const SlipWheelData& data, bool common_slip)
+  /// Keeps its own copy of `data` (a nominal that follows the state included). `icr`: a last
+  /// block, the ICRs' half-track error δ.
+  SlipResidual(int wheel, int wheels, const SlipWheelData& data, bool common_slip, bool icr = false)
       : wheel_(wheel),
         common_(common_slip),
+        icr_(icr),
         owned_(std::make_unique<SlipWheelData>(data)),
         d_(owned_.get()) {
     setSizes(wheels);
@@ -77,8 +88,9 @@ class SlipResidual final : public ceres::CostFunction {
   /// one array: the cost function is then 56 bytes instead of 350, and Ceres' passes over every
   /// residual block's cost function (sizes, row counts) read a dense run of memory instead of
   /// one cache line every 370 bytes (docs/results.md, "Speed", session 6).
-  SlipResidual(int wheel, int wheels, const SlipWheelData* data, bool common_slip = false)
-      : wheel_(wheel), common_(common_slip), d_(data) {
+  SlipResidual(int wheel, int wheels, const SlipWheelData* data, bool common_slip = false,
+               bool icr = false)
+      : wheel_(wheel), common_(common_slip), icr_(icr), d_(data) {
     setSizes(wheels);
   }
 
@@ -92,8 +104,10 @@ class SlipResidual final : public ceres::CostFunction {
     const SlipWheelData& d = *d_;
     const Vec4d t =
         rover::slipConstraintWithJacobian(d.T_body_wheel, d.radius, d.joint_twist, v, w, xi, &J);
-    const Vec4d nominal =
-        d.nominal_slip + d.nominal_jacobian * (Vec2d(v.x(), w.z()) - d.nominal_at);
+    Vec4d nominal = d.nominal_slip + d.nominal_jacobian * (Vec2d(v.x(), w.z()) - d.nominal_at);
+    const double icr = icr_ ? parameters[common_ ? 4 : 3][0] : 0.0;
+    const double w_nom = d.nominal_follows_state ? w.z() : d.command_w_z;
+    nominal[0] += d.icr_side * w_nom * icr;
     Eigen::Map<Vec4d>{residuals} = d.sqrt_info * (nominal - t);
     if (jacobians) {
       using Rm43 = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>;
@@ -101,6 +115,7 @@ class SlipResidual final : public ceres::CostFunction {
       // ∂r/∂s = L (∂t_nom/∂s − ∂t/∂s); t_nom moves with v_x (and c_x) and ω_z only.
       J.col(0) -= d.nominal_jacobian.col(0);
       J.col(5) -= d.nominal_jacobian.col(1);
+      if (d.nominal_follows_state) J(0, 5) -= d.icr_side * icr;
       if (jacobians[0]) Eigen::Map<Rm43>{jacobians[0]} = -d.sqrt_info * J.leftCols<3>();
       if (jacobians[1]) Eigen::Map<Rm43>{jacobians[1]} = -d.sqrt_info * J.middleCols<3>(3);
       if (jacobians[2]) {
@@ -112,40 +127,47 @@ class SlipResidual final : public ceres::CostFunction {
         using Rm42 = Eigen::Matrix<double, 4, 2, Eigen::RowMajor>;
         Eigen::Map<Rm42>{jacobians[3]} = -d.sqrt_info * J.leftCols<2>();
       }
+      if (icr_ && jacobians[common_ ? 4 : 3])
+        Eigen::Map<Vec4d>{jacobians[common_ ? 4 : 3]} = d.sqrt_info.col(0) * (d.icr_side * w_nom);
     }
     return true;
   }
 
   /// The same residual through the templated model (the autodiff twin the tests compare with);
-  /// c: the common slip (zero without it).
+  /// c: the common slip (zero without it), icr: δ (zero without it).
   template <typename T, typename Xi>
   Vec4<T> residual(const Vec3<T>& v, const Vec3<T>& w, const Xi& xi,
-                   const Vec2<T>& c = Vec2<T>::Zero()) const {
+                   const Vec2<T>& c = Vec2<T>::Zero(), const T& icr = T(0)) const {
     const SlipWheelData& d = *d_;
     const Vec3<T> v_wheels(v.x() + c.x(), v.y() + c.y(), v.z());
     const Vec4<T> t =
         rover::slipConstraint<T>(d.T_body_wheel, d.radius, d.joint_twist, v_wheels, w, xi[wheel_]);
     const Vec2<T> u(v_wheels.x() - T(d.nominal_at.x()), w.z() - T(d.nominal_at.y()));
-    const Vec4<T> nominal = d.nominal_slip.cast<T>() + d.nominal_jacobian.cast<T>() * u;
+    Vec4<T> nominal = d.nominal_slip.cast<T>() + d.nominal_jacobian.cast<T>() * u;
+    const T w_nom = d.nominal_follows_state ? w.z() : T(d.command_w_z);
+    nominal[0] += T(d.icr_side) * w_nom * icr;
     return d.sqrt_info.cast<T>() * (nominal - t);
   }
   bool hasCommonSlip() const { return common_; }
+  bool hasIcr() const { return icr_; }
 
  private:
   void setSizes(int wheels) {
     set_num_residuals(4);
     *mutable_parameter_block_sizes() = {3, 3, wheels};
     if (common_) mutable_parameter_block_sizes()->push_back(2);
+    if (icr_) mutable_parameter_block_sizes()->push_back(1);
   }
 
   int wheel_;
-  bool common_ = false;
+  bool common_ = false, icr_ = false;
   std::unique_ptr<SlipWheelData> owned_;  ///< set by the owning constructor only
   const SlipWheelData* d_;
 };
 
 /// Constraint (residual_collector.h): every wheel's slip residuals at node k, under the robust
-/// loss. Blocks v_k, ω_k, ξ_k, and c_k when the node has the common slip (k.c.size > 0). Σ is the
+/// loss. Blocks v_k, ω_k, ξ_k, c_k when the node has the common slip (k.c.size > 0), and the
+/// segment's ICR error δ when it has one (k.icr.size > 0). Σ is the
 /// slip noise plus the joint-rate and steering noise carried through at the seed's states
 /// (rover::slipCovariance); t_nom the nominal slip of the nominal body twist (rover::nominalSlip),
 /// the command's, or with `nominal_follows_state` (no cmd.csv) the state's own (v_x + c_x, ω_z),
