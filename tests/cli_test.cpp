@@ -159,6 +159,34 @@ TEST(Cli, RunWarnsOfAGyroGapAndMarksTheSegment) {
   std::filesystem::remove_all(dir);
 }
 
+// A rover.yaml that declares a gyro three times quieter than its readings at rest: the measured
+// noise is used with a `noise` warning, counted in metrics.json; --no-noise-check keeps the
+// declared one and says nothing.
+TEST(Cli, RunUsesTheNoiseMeasuredAtRestUnlessTold) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_noise_check";
+  std::filesystem::remove_all(dir);
+  std::filesystem::copy(bundled("straight-1m"), dir);
+  std::ifstream in(dir / "rover.yaml");
+  std::string line, text;
+  while (std::getline(in, line))
+    text += (line.rfind("  noise_rad_s:", 0) == 0 ? "  noise_rad_s: 0.0003" : line) + "\n";
+  in.close();
+  std::ofstream(dir / "rover.yaml") << text;
+  const Result r = run("filter " + dir.string() + " -o " + (dir / "out").string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("warning: gyro.csv: noise at rest"));
+  EXPECT_THAT(r.err,
+              HasSubstr("gyro.noise_rad_s 0.0003 in rover.yaml: the measured value is used"));
+  const eval::MetricsReport m = eval::readMetricsJson(dir / "out" / "metrics.json");
+  ASSERT_TRUE(m.diagnostics);
+  EXPECT_EQ(m.diagnostics->countsByKind().at("noise"), 1);
+  const Result kept =
+      run("filter --no-noise-check " + dir.string() + " -o " + (dir / "kept").string());
+  EXPECT_EQ(kept.code, 0) << kept.err;
+  EXPECT_THAT(kept.err, Not(HasSubstr("noise at rest")));
+  std::filesystem::remove_all(dir);
+}
+
 // A joints clock 0.2 s late: found, said on stderr, counted in metrics.json, and removed;
 // --no-clock-align keeps the stamps and says nothing.
 TEST(Cli, RunFindsAndRemovesAJointsClockOffset) {

@@ -134,6 +134,7 @@ std::vector<std::string> pipelineArguments(const PipelineOptions& o, bool smooth
   if (o.no_gating) a.push_back("--no-gating");
   if (o.pitch_projection) a.push_back("--pitch-projection");
   if (o.no_clock_align) a.push_back("--no-clock-align");
+  if (o.no_noise_check) a.push_back("--no-noise-check");
   if (o.no_rts) a.push_back("--no-rts");
   if (o.joints_clock_offset_s)
     a.insert(a.end(), {"--joints-clock-offset", shortest(*o.joints_clock_offset_s)});

@@ -59,6 +59,9 @@ void addPipelineOptions(CLI::App& cmd, PipelineOptions& o) {
   cmd.add_flag("--no-clock-align", o.no_clock_align,
                "Keep joints.csv's stamps as logged (no clock offset estimated against the gyro "
                "and accelerometer)");
+  cmd.add_flag("--no-noise-check", o.no_noise_check,
+               "Keep rover.yaml's gyro and accelerometer noise even where the rests' readings "
+               "are noisier (no noise finding)");
   cmd.add_option("--joints-clock-offset", o.joints_clock_offset_s,
                  "joints.csv's known clock offset in seconds (+: its stamps late); removed "
                  "instead of estimating one")
@@ -116,6 +119,7 @@ pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   c.ekf.rts = !o.no_rts;
   c.dead_reckoning.pitch_projection = o.pitch_projection;
   c.align_joints_clock = !o.no_clock_align;
+  c.measure_rest_noise = !o.no_noise_check;
   c.joints_clock_offset_s = o.joints_clock_offset_s;
   auto& so = c.smoother;
   so.node_period_s = o.node_period_s;

@@ -26,7 +26,8 @@ struct PipelineOptions {
   std::string velocity_model = "auto";
   bool no_sun = false, no_slip = false, no_gating = false, pitch_projection = false;
   bool no_clock_align = false;
-  bool no_rts = false;  ///< no Rauch–Tung–Striebel pass over the EKF (rts.csv)
+  bool no_noise_check = false;  ///< keep rover.yaml's gyro/accelerometer noise even if refuted
+  bool no_rts = false;          ///< no Rauch–Tung–Striebel pass over the EKF (rts.csv)
   std::optional<double> joints_clock_offset_s;
   // Smoother (smooth, run).
   double node_period_s = 0.0;
