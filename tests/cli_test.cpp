@@ -159,6 +159,30 @@ TEST(Cli, RunWarnsOfAGyroGapAndMarksTheSegment) {
   std::filesystem::remove_all(dir);
 }
 
+// A skid-steer rover: the EKF's estimate of the ICRs' half-track error is printed and every
+// segments.csv row carries it with its σ.
+TEST(Cli, FilterReportsTheSkidSteerIcrsEstimate) {
+  const auto dir = std::filesystem::temp_directory_path() / "traverse_cli_icr";
+  std::filesystem::remove_all(dir);
+  const Result r = run("filter " + bundled("wvu-pathfinder-test17run") + " -o " + dir.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ekf: skid-steer ICRs' half-track error at the end "));
+  EXPECT_THAT(r.out, HasSubstr("(prior sigma 0.1): ICRs at y = "));
+  std::ifstream in(dir / "segments.csv");
+  std::string header, row;
+  std::getline(in, header);
+  EXPECT_THAT(header, ::testing::EndsWith(",icr_half_track_error_m,sigma_icr_half_track_error_m"));
+  int rows = 0;
+  while (std::getline(in, row)) {
+    ++rows;
+    const double sigma = std::stod(row.substr(row.rfind(',') + 1));
+    EXPECT_GT(sigma, 0.0) << row;
+    EXPECT_LT(sigma, 0.1) << row;
+  }
+  EXPECT_GE(rows, 3);
+  std::filesystem::remove_all(dir);
+}
+
 // A rover.yaml that declares a gyro three times quieter than its readings at rest: the measured
 // noise is used with a `noise` warning, counted in metrics.json; --no-noise-check keeps the
 // declared one and says nothing.

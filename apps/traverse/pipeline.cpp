@@ -340,6 +340,15 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
         << n.accel_bias_sigma.z() << ") m/s^2 (prior sigma " << log.config.accel.bias_sigma_mps2
         << ")" << std::setprecision(6) << "\n";
   }
+  if (log.config.estimatesIcr() && !e.ekf.trajectory.nodes.empty()) {
+    // δ as the EKF ends against its prior σ (the smoother's per segment: segments.csv).
+    const est::TrajectoryNode& n = e.ekf.trajectory.nodes.back();
+    const io::SkidSteerConfig& k = *log.config.skid_steer;
+    out << std::setprecision(3) << "ekf: skid-steer ICRs' half-track error at the end " << n.icr
+        << " +- " << n.icr_sigma << " m (prior sigma " << k.icrHalfTrackSigma()
+        << "): ICRs at y = " << k.icr_y_left_m + n.icr << ", " << k.icr_y_right_m - n.icr
+        << " m; per segment in segments.csv" << std::setprecision(6) << "\n";
+  }
   if (e.odometry_scale_variance > 0.0)
     out << "odometry: the wheels' rolling radius is known to " << std::setprecision(3)
         << 100.0 * std::sqrt(e.odometry_scale_variance) << std::setprecision(6)
