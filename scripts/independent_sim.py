@@ -11,7 +11,9 @@ Usage (from the repository root):
 Scenarios: tilted-multi, tilted-slow, tilted-long, tilted-turns (see SCENARIOS below).
 Options: --slope-deg 5 --slope-azimuth-deg 60 --initial-heading-deg 20 --start X Y Z --t0 0
   --profile trapezoid|slow-onset --slip-sigma 0 --slip-tau 5 --joint-noise-rad (suspension and
-  steering) --wheel-noise-rad --gyro-noise --{gyro,accel,joints,sun,cmd,truth}-hz.
+  steering) --wheel-noise-rad --gyro-noise --{gyro,accel,joints,sun,cmd,truth}-hz
+  --terrain plane|undulating (default plane) --terrain-amplitude 0.05 --terrain-components 3
+  --terrain-wavelengths 1 4 --terrain-step 0.01 --path-point body|ground (undulating only).
 Rates: gyro, accel, joints 50 Hz, sun 5, cmd 20, truth 10 (tilted-long: 20/20/20/2/10/5;
   tilted-slow and tilted-turns: cmd 10, truth 5, to stay under 3 MB); each stream starts at a
   seeded phase in [0, half an interval) after --t0. Rests: 10 s first, 6-10 s (seeded) between
@@ -28,7 +30,53 @@ ICR at y = 0). The front steering joints point their wheels perpendicular to the
 ICR; they are moved (2 s, cosine) while the rover stands still, in the middle of a rest.
 Wheel drive angles integrate the contact point's speed along the wheel heading / radius
 (optionally times 1 + a Gauss-Markov per-wheel slip fraction). Everything is evaluated in
-closed form at each stream's own time stamps.
+closed form at each stream's own time stamps. Without --terrain (or with --terrain plane) the
+output is byte for byte what this script wrote before --terrain existed.
+
+Undulating terrain (--terrain undulating; rovers with 3 + (suspension joints) = (wheels), e.g.
+Rocky-7: 6 wheels, rocker + 2 bogies; a rigid rover such as datasets/rovers/pathfinder cannot
+keep four wheels on such ground and is refused). The ground is z = h(x, y) in the site frame:
+    h = c0 + tan(slope) ((x - x0) cos(az) + (y - y0) sin(az))
+           + sum_{k=1..n} A_k sin(kx_k (x - x0) + ky_k (y - y0) + phase_k)
+with slope = --slope-deg, az = --slope-azimuth-deg (the tilted plane, 0 for none), (x0, y0) the
+--start position, n = --terrain-components (3), wavelength 2 pi / |k_k| uniform in
+--terrain-wavelengths (1..4 m), direction and phase uniform in [0, 2 pi), A_k = amplitude * w_k /
+sum(w), w_k uniform in [0.5, 1], amplitude = --terrain-amplitude (0.05 m: |h - plane| <= 5 cm),
+all drawn from the seed (its own stream: the other streams do not change), and c0 such that the
+first body z is --start's z. The terrain's curvature must stay below half the wheel's (one
+contact per wheel). The numbers are written to terrain.json in the log (read by --check only).
+The plan's (x, y, yaw) are the body origin's site x, y and the heading (Z-Y-X yaw, from site +x;
+--initial-heading-deg from site +x); the plan is a horizontal one (lengths and turns are
+horizontal). With the body origin held on the plan, a change of roll swings the wheels sideways
+(body height x roll change: 15-20 mm on a 5 deg roll change), so they scrub laterally;
+--path-point ground puts the plan's x, y on the point the plane's body height below the body
+origin along body -z (near the wheels' contact line) instead, which scrubs far less. At every instant of a fine grid (--terrain-step, 0.01 s) Newton's method with a
+numerical Jacobian (warm-started from the previous instant's solution: the grid is solved in
+time order, in blocks of 25 instants started from the last solution of the block before) solves
+body z, roll, pitch and the suspension angles (Rocky-7: rocker gamma0, with the right rocker
+the URDF's mimic -1 x gamma0, and bogies gamma1, gamma2) so that every wheel's rim circle (URDF
+radius, in the wheel's x-z plane, thin wheel) touches the ground: on each rim the contact angle
+xi is where the circle is tangent to the surface (inner Newton on dg/dxi = 0, g = vertical gap
+X_z - h(X_x, X_y) of the rim point X(xi) = c + r (sin xi x_w - cos xi z_w)), and that minimum
+gap must be 0 (converged to < 1e-11 m; any gap > 1e-6 m stops the script). Truth and joints
+are solved exactly at their own stamps (warm start from the grid); the other streams use the
+grid linearly interpolated. Velocity, acceleration (incl. vertical), body rate
+(Log(R(t-h)^T R(t+h))/2h) and its derivative are central differences on the grid; gyro,
+accelerometer (with lever arm) and sun sensor follow the 3-D attitude and motion as on the
+plane. Drive angles: rolling without slip at the contact: the point fixed in the non-spinning
+wheel frame that is at the contact has velocity v_p (grid differences) and psi_dot = v_p . (d x
+a) / r (d: centre -> contact, a: axle, r the rolling radius), times 1 + the slip fraction with
+--slip-sigma; integrated on the grid, cubic Hermite at the joint stamps. So r dpsi + r dxi
+follows each contact's 3-D path on the ground. Joint-angle noise (--joint-noise-rad or
+rover.yaml) is added to the moving rocker, bogie and steering angles. cmd.csv is the plan's
+twist (planar velocity in the heading frame, yaw rate), not the true body twist (the contract:
+"a prior on the motion"). The steering is moved at rest as on the plane; on curved ground that
+moves the body slightly (a steered wheel's lowest point changes), which the truth carries.
+--check on such a log adds: every wheel's gap to the ground along the normal from the truth
+pose and joints.csv through the forward kinematics (< 1 mm), the suspension angles solved from
+the truth pose against joints.csv (the joint noise), the attitude integrated from the gyro
+(minus the truth bias; truth rate on axes it lacks) against the truth, and on straight legs
+r dpsi + r dxi against each contact's 3-D path length.
 
 Conventions taken from the contract (docs/log-format.md; shared/docs/log-format.md):
 - "Files": file names, headers and column order exactly as listed; joints.csv columns are `t`
@@ -56,16 +104,18 @@ Conventions I had to choose (the contract does not say; see the report):
 - truth vx,vy,vz and wx,wy,wz are in the BODY frame (K-1: v is resolved in body coordinates).
 - truth bx,by,bz: the gyro bias per body axis; axes a heading gyro lacks are written as 0.
 - truth xi_i: the contact point's angle about the wheel axle from the wheel-frame -z (bottom),
-  positive for a rotation about the wheel's +y (contact point moving behind the bottom).
-  On a plane every xi is 0 here, so the sign does not show in these logs.
+  positive when the contact is ahead of the bottom (towards wheel-frame +x), as docs/log-format.md
+  now says ("positive when the contact moves forward (climbing a step ahead)"); an earlier
+  version of this script took the opposite sign, which never showed (on a plane every xi is 0).
 - truth position is the body origin (URDF base_link); the first row is at --start (default 0).
-- cmd.csv is the planned body twist, which here equals the true twist (no dynamics).
+- cmd.csv is the planned body twist, which on the plane equals the true twist (no dynamics).
 - K-15's asin(rho) holds only with the sun above the sensor's x-y plane; the off-boresight angle
   is taken as atan2(rho, s_z) (equal there); field_of_view_rad is the full cone angle.
 - sun.azimuth_elevation is refused: the contract defines neither the azimuth's origin nor sense.
 - turn in place: the ICR is at (turn_centre_x_m, 0) (the key gives only the line's x).
 """
 import argparse
+import json
 import math
 import os
 import shutil
@@ -97,6 +147,7 @@ SCENARIOS = {
                                    truth=5.0)),
     "tilted-turns": dict(legs=_TURNS, profile="trapezoid", rates=dict(cmd=10.0, truth=5.0)),
 }
+TERRAIN_FILE = "terrain.json"     # written with --terrain undulating, read by --check
 DEFAULT_RATES = dict(gyro=50.0, accel=50.0, joints=50.0, sun=5.0, cmd=20.0, truth=10.0)
 
 
@@ -298,7 +349,7 @@ class Rover:
             d /= np.linalg.norm(d)
             pts.append(c + self.r_geom[w] * d)
             dw = R.T @ d
-            xis.append(math.atan2(-dw[0], -dw[2]))
+            xis.append(math.atan2(dw[0], -dw[2]))  # 0 at the bottom, + ahead of it
         return np.array(pts), np.array(xis)
 
     def solve_on_plane(self, steer):
@@ -330,6 +381,252 @@ class Rover:
         if np.max(np.abs(f)) > 1e-9:
             sys.exit(f"rover: no configuration puts every wheel on the plane (residual {np.max(np.abs(f)):.3g} m)")
         return dict(h=x[0], R_tilt=Rt, susp=x[3:], contacts=pts, xi=xis)
+
+
+# ------------------------------------------------------------------------ undulating terrain
+class Terrain:
+    """z = h(x, y) in the site frame (see the module docstring, "Undulating terrain"):
+    h = c0 + tan(slope) ((x - x0) cos(az) + (y - y0) sin(az))
+           + sum_k A_k sin(kx_k (x - x0) + ky_k (y - y0) + phase_k),
+    |(kx_k, ky_k)| = 2 pi / wavelength_k; (x0, y0) = --start; c0 puts the first body z at
+    --start's z."""
+
+    def __init__(self, d):
+        self.d = d
+        self.o = np.array(d["origin_xy"], float)
+        self.g0 = math.tan(math.radians(d["slope_deg"])) * np.array(
+            [math.cos(math.radians(d["slope_azimuth_deg"])), math.sin(math.radians(d["slope_azimuth_deg"]))])
+        self.A = np.array(d["amplitudes_m"], float)
+        self.k = np.array(d["wave_vectors_rad_per_m"], float).reshape(-1, 2)
+        self.ph = np.array(d["phases_rad"], float)
+        self.c0 = float(d["offset_m"])
+
+    @staticmethod
+    def random(seed, amplitude, n, wl, slope_deg, slope_az_deg, origin_xy):
+        rng = np.random.default_rng([seed, 5])       # own stream: the other streams are untouched
+        L = rng.uniform(wl[0], wl[1], n)
+        dirs = rng.uniform(0.0, 2 * math.pi, n)
+        ph = rng.uniform(0.0, 2 * math.pi, n)
+        wgt = rng.uniform(0.5, 1.0, n)
+        A = amplitude * wgt / wgt.sum()
+        k = (2 * math.pi / L)[:, None] * np.column_stack([np.cos(dirs), np.sin(dirs)])
+        return Terrain(dict(kind="undulating", slope_deg=slope_deg, slope_azimuth_deg=slope_az_deg,
+                            origin_xy=list(map(float, origin_xy)), amplitudes_m=A.tolist(),
+                            wavelengths_m=L.tolist(), wave_vectors_rad_per_m=k.tolist(),
+                            phases_rad=ph.tolist(), offset_m=0.0))
+
+    def max_curvature(self):
+        return float(np.sum(self.A * np.sum(self.k ** 2, axis=1)))
+
+    def _arg(self, x, y):
+        return np.multiply.outer(x - self.o[0], self.k[:, 0]) + np.multiply.outer(y - self.o[1], self.k[:, 1]) + self.ph
+
+    def h(self, x, y):
+        return self.c0 + self.g0[0] * (x - self.o[0]) + self.g0[1] * (y - self.o[1]) + np.sin(self._arg(x, y)) @ self.A
+
+    def derivs(self, x, y):
+        """h, h_x, h_y, h_xx, h_xy, h_yy."""
+        th = self._arg(x, y)
+        s, c = np.sin(th), np.cos(th)
+        kx, ky = self.k[:, 0], self.k[:, 1]
+        h = self.c0 + self.g0[0] * (x - self.o[0]) + self.g0[1] * (y - self.o[1]) + s @ self.A
+        return (h, self.g0[0] + c @ (self.A * kx), self.g0[1] + c @ (self.A * ky),
+                -(s @ (self.A * kx * kx)), -(s @ (self.A * kx * ky)), -(s @ (self.A * ky * ky)))
+
+
+def _skew(a):
+    return np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+
+
+def euler_zyx(yaw, pitch, roll):  # batched R = Rz(yaw) Ry(pitch) Rx(roll)
+    cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    R = np.empty(np.shape(yaw) + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -sp, cp * sr, cp * cr
+    return R
+
+
+def so3_log(R):  # batched rotation vector of R (angles well below pi)
+    c = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1, 1)
+    ang = np.arccos(c)
+    vee = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    small = ang < 1e-6
+    fac = np.where(small, 0.5 + ang ** 2 / 12, ang / (2 * np.sin(np.where(small, 1.0, ang))))
+    return vee * fac[..., None]
+
+
+class Kinematics:
+    """Batched forward kinematics of every wheel (URDF chain base_link -> wheel joint, drive
+    angle excluded) and the wheel-terrain contact solver for --terrain undulating."""
+
+    def __init__(self, rover):
+        self.rover = rover
+        W, nc = len(rover.wheel_joint), len(rover.columns)
+        chains = []
+        for jn in rover.wheel_joint:
+            ch, link = [jn], rover.joints[jn]["parent"]
+            while link in rover.child_joint:
+                ch.append(rover.child_joint[link])
+                link = rover.joints[ch[-1]]["parent"]
+            chains.append(ch[::-1])                   # base first, the wheel's drive joint last
+        D = max(len(c) for c in chains)
+        self.Rf = np.tile(np.eye(3), (D, W, 1, 1))
+        self.xyz = np.zeros((D, W, 3))
+        self.K = np.zeros((D, W, 3, 3))
+        self.coef = np.zeros((D, W, nc))
+        self.off = np.zeros((D, W))
+        for w, ch in enumerate(chains):
+            pad = D - len(ch)                         # identity levels at the base end
+            for l, jn in enumerate(ch):
+                L, jd = pad + l, rover.joints[jn]
+                self.Rf[L, w] = rpy_matrix(jd["rpy"])
+                self.xyz[L, w] = jd["xyz"]
+                if jn == rover.wheel_joint[w] or jd["type"] not in ("revolute", "continuous"):
+                    continue                          # fixed joint, or the drive angle (excluded)
+                ax = jd["axis"] / np.linalg.norm(jd["axis"])
+                self.K[L, w] = _skew(ax)
+                name, mul, off = jn, 1.0, 0.0         # resolve mimic chains to a column
+                while rover.joints[name]["mimic"] is not None:
+                    m, mm, oo = rover.joints[name]["mimic"]
+                    off += mul * oo
+                    mul *= mm
+                    name = m
+                if name in rover.col_joint:
+                    self.coef[L, w, rover.col_joint.index(name)] = mul
+                self.off[L, w] = off
+        self.K2 = self.K @ self.K
+        self.D, self.W, self.nc = D, W, nc
+        self.r = rover.r_geom
+        self.ns = len(rover.susp_cols)
+        self.path_point = np.zeros(3)                 # body-frame point that follows the plan's x, y
+
+    def body_xy(self, xy, R):
+        """Body origin's site x, y when the path point is at plan position xy."""
+        return xy - np.einsum("nij,j->ni", R, self.path_point)[:, :2]
+
+    def wheel_frames(self, Q):
+        """Q (M, ncols) joint coordinates -> wheel centres (M, W, 3) and wheel frames (M, W, 3, 3)
+        in the body frame (wheel frame: x forward, y axle, z up; drive angle excluded)."""
+        M = Q.shape[0]
+        R = np.broadcast_to(np.eye(3), (M, self.W, 3, 3))
+        p = np.zeros((M, self.W, 3))
+        for L in range(self.D):
+            ang = Q @ self.coef[L].T + self.off[L]
+            Rot = np.eye(3) + np.sin(ang)[..., None, None] * self.K[L] + (1 - np.cos(ang))[..., None, None] * self.K2[L]
+            p = p + np.einsum("mwij,wj->mwi", R, self.xyz[L])
+            R = R @ (self.Rf[L] @ Rot)
+        return p, R
+
+    def contacts(self, terrain, pos, Rb, Q, iters=6):
+        """Contact of every wheel's rim circle with the terrain. pos (M,3), Rb (M,3,3) body pose
+        in the site frame; Q (M, ncols). Returns dict: gap (M,W) vertical distance of the circle's
+        lowest point above h (0 = touching), ngap (same along the terrain normal), xi (M,W)
+        contact angle (0 = wheel-frame bottom, + forward), X contact points (site), c wheel
+        centres (site), Rw wheel frames (site), dg stationarity residual."""
+        cb, Rwb = self.wheel_frames(Q)
+        c = pos[:, None, :] + np.einsum("mij,mwj->mwi", Rb, cb)
+        Rw = np.einsum("mij,mwjk->mwik", Rb, Rwb)
+        e1, a, e3 = Rw[..., 0], Rw[..., 1], Rw[..., 2]
+        r = self.r[None, :]
+        # start: the circle's lowest point along the normal of the terrain's tangent plane below c
+        _, hx, hy, _, _, _ = terrain.derivs(c[..., 0], c[..., 1])
+        n = np.stack([-hx, -hy, np.ones_like(hx)], axis=-1)
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        dd = -n + np.sum(n * a, axis=-1, keepdims=True) * a
+        th = np.arctan2(np.sum(dd * e1, axis=-1), -np.sum(dd * e3, axis=-1))
+        # Newton on g'(th) = 0, g(th) = X_z(th) - h(X_x, X_y), X = c + r (sin th e1 - cos th e3)
+        for _ in range(iters):
+            s, co = np.sin(th)[..., None], np.cos(th)[..., None]
+            U = s * e1 - co * e3                      # (X - c) / r
+            V = co * e1 + s * e3                      # X' / r
+            X = c + r[..., None] * U
+            h, hx, hy, hxx, hxy, hyy = terrain.derivs(X[..., 0], X[..., 1])
+            g1 = V[..., 2] - hx * V[..., 0] - hy * V[..., 1]
+            g2 = -U[..., 2] + hx * U[..., 0] + hy * U[..., 1] - r * (hxx * V[..., 0] ** 2 + 2 * hxy * V[..., 0] * V[..., 1] + hyy * V[..., 1] ** 2)
+            th = th - g1 / g2
+        s, co = np.sin(th)[..., None], np.cos(th)[..., None]
+        U = s * e1 - co * e3
+        V = co * e1 + s * e3
+        X = c + r[..., None] * U
+        h, hx, hy, _, _, _ = terrain.derivs(X[..., 0], X[..., 1])
+        gap = X[..., 2] - h
+        dg = V[..., 2] - hx * V[..., 0] - hy * V[..., 1]
+        return dict(gap=gap, ngap=gap / np.sqrt(1 + hx * hx + hy * hy), xi=th, X=X, c=c, Rw=Rw, dg=dg)
+
+    def _resid(self, terrain, x, xy, yaw, steer):
+        M = x.shape[0]
+        Q = np.zeros((M, self.nc))
+        Q[:, self.rover.susp_cols] = x[:, 3:]
+        Q[:, self.rover.steer_cols] = steer
+        Rb = euler_zyx(yaw, x[:, 2], x[:, 1])
+        pos = np.column_stack([self.body_xy(xy, Rb), x[:, 0]])
+        return self.contacts(terrain, pos, Rb, Q)
+
+    def solve(self, terrain, xy, yaw, steer, x0, tol=1e-11, fail_tol=1e-6, what=""):
+        """Newton (numerical Jacobian) for x = (z, roll, pitch, suspension angles) at each
+        instant so that every wheel's circle touches the terrain (gap 0). xy (N,2), yaw (N,),
+        steer (N,k), x0 (N, 3+ns) starting points. Returns x (N, 3+ns), the final contacts."""
+        N, nx, eps = len(yaw), 3 + self.ns, 1e-7
+        x = np.array(x0, float, copy=True)
+        act = np.arange(N)
+        for it in range(40):
+            if act.size == 0:
+                break
+            xa = x[act]
+            Xp = np.repeat(xa[:, None, :], nx + 1, axis=1)
+            Xp[:, 1:, :] += eps * np.eye(nx)
+            rep = lambda v: np.repeat(v, nx + 1, axis=0)
+            f = self._resid(terrain, Xp.reshape(-1, nx), rep(xy[act]), rep(yaw[act]), rep(steer[act]))["gap"]
+            f = f.reshape(len(act), nx + 1, self.W)
+            F = f[:, 0]
+            done = np.max(np.abs(F), axis=1) < tol
+            Jt = (f[:, 1:] - f[:, :1]) / eps          # (n, nx, W) = J^T
+            J = np.transpose(Jt, (0, 2, 1))
+            nd = ~done
+            if np.any(nd):
+                JT = Jt[nd]
+                if nx == self.W:                      # square: Newton
+                    step = np.linalg.solve(J[nd], -F[nd])
+                else:                                 # not reached (refused earlier): Gauss-Newton
+                    step = np.linalg.solve(JT @ J[nd], -np.einsum("nkw,nw->nk", JT, F[nd]))
+                x[act[nd]] += step
+            act = act[nd]
+        res = self._resid(terrain, x, xy, yaw, steer)
+        worst = np.max(np.abs(res["gap"]), axis=1)
+        if np.max(worst) > fail_tol or not np.all(np.isfinite(worst)) or np.max(np.abs(res["dg"])) > 1e-9:
+            i = int(np.nanargmax(worst))
+            sys.exit(f"terrain: contact solve failed{what}: instant {i} (x, y, yaw) = "
+                     f"({xy[i, 0]:.4f}, {xy[i, 1]:.4f}, {yaw[i]:.4f}): wheel gap {worst[i]:.3g} m > {fail_tol:g} m")
+        return x, res
+
+    def solve_suspension(self, terrain, pos, Rb, Q):
+        """Suspension angles (least squares over the wheels' gaps along the normal) for given
+        body poses and steering angles; Q (M, ncols) holds the start and the steering."""
+        Q = np.array(Q, float, copy=True)
+        sc, eps = self.rover.susp_cols, 1e-7
+        for _ in range(20):
+            f = self.contacts(terrain, pos, Rb, Q)["ngap"]
+            J = np.empty(f.shape + (len(sc),))
+            for k, c in enumerate(sc):
+                Qp = Q.copy()
+                Qp[:, c] += eps
+                J[..., k] = (self.contacts(terrain, pos, Rb, Qp)["ngap"] - f) / eps
+            step = np.linalg.solve(np.einsum("mwk,mwl->mkl", J, J), -np.einsum("mwk,mw->mk", J, f))
+            Q[:, sc] += step
+            if np.max(np.abs(step)) < 1e-12:
+                break
+        return Q
+
+    def solve_chunked(self, terrain, xy, yaw, steer, x0, chunk=1500, **kw):
+        xs, out = [], dict(gap=[], ngap=[], xi=[], X=[], c=[], Rw=[])
+        for i in range(0, len(yaw), chunk):
+            s = slice(i, i + chunk)
+            x, res = self.solve(terrain, xy[s], yaw[s], steer[s], x0[s], **kw)
+            xs.append(x)
+            for k in out:
+                out[k].append(res[k])
+        return np.concatenate(xs), {k: np.concatenate(v) for k, v in out.items()}
 
 
 # -------------------------------------------------------------------------------- the motion
@@ -480,6 +777,137 @@ def make_slip(segs, rover, sigma, tau, rng, t_end):
     return lambda t: np.stack([np.interp(t, tg, cum[:, w]) for w in range(W)], axis=1)
 
 
+def make_slip_fraction(sigma, tau, rng, t_end, W):
+    """Per-wheel Gauss-Markov longitudinal slip fraction s(t) (undulating terrain: the drive
+    rate from rolling without slip is multiplied by 1 + s)."""
+    dt = 0.005
+    tg = np.arange(0.0, t_end + 2 * dt, dt)
+    a = math.exp(-dt / tau)
+    s = np.zeros((len(tg), W))
+    s[0] = rng.normal(0, sigma, W)
+    e = rng.normal(0, sigma * math.sqrt(1 - a * a), (len(tg), W))
+    for i in range(1, len(tg)):
+        s[i] = a * s[i - 1] + e[i]
+    return lambda t: np.stack([np.interp(t, tg, s[:, w]) for w in range(W)], axis=1)
+
+
+def undulating_motion(a, rover, segs, t_end, t0, start, h_plane, slip_frac):
+    """The 3-D motion over the undulating terrain. Returns (state function, terrain, info)."""
+    kin = Kinematics(rover)
+    if a.path_point == "ground":                      # the point h_plane below the body origin
+        kin.path_point = np.array([0.0, 0.0, -h_plane])
+    W, nx = kin.W, 3 + kin.ns
+    if nx != W:
+        sys.exit(f"--terrain undulating: the rover has {W} wheels but only {kin.ns} suspension "
+                 f"joints; a rover with 3 + (suspension joints) = (wheels) is needed so that every "
+                 f"wheel can touch the terrain (a rigid 4-wheel rover cannot; not supported)")
+    terrain = Terrain.random(a.seed, a.terrain_amplitude, a.terrain_components, a.terrain_wavelengths,
+                             a.slope_deg, a.slope_azimuth_deg, start[:2])
+    if terrain.max_curvature() > 0.5 / np.max(kin.r):
+        sys.exit(f"--terrain undulating: terrain curvature up to {terrain.max_curvature():.3g} 1/m is more "
+                 f"than half the wheels' {1 / np.max(kin.r):.3g} 1/m (a wheel could touch in two places); "
+                 f"lower --terrain-amplitude or raise --terrain-wavelengths")
+    h = a.terrain_step
+    n = int(math.ceil(t_end / h))
+    tf = h * np.arange(-2, n + 3)                     # plan time, padded for the differences
+    ev = evaluate(segs, rover, np.clip(tf, 0.0, t_end))
+    xy, yaw, steer = start[:2] + ev["P"], ev["phi"], ev["steer"]
+
+    def solve_unique(xy, yaw, steer, x0, what):
+        """Solve only where the planar input changes (rests repeat the pose exactly)."""
+        inp = np.column_stack([xy, yaw, steer])
+        new = np.ones(len(yaw), bool)
+        new[1:] = np.any(inp[1:] != inp[:-1], axis=1)
+        iu = np.flatnonzero(new)
+        x, res = kin.solve_chunked(terrain, xy[iu], yaw[iu], steer[iu], x0[iu], what=what)
+        m = np.searchsorted(iu, np.maximum.accumulate(np.where(new, np.arange(len(yaw)), 0)))
+        return x[m], {k: v[m] for k, v in res.items()}
+
+    # first instant from a cold start (level, zero suspension), then the terrain's offset c0 so
+    # that the first body z is --start's z
+    xi0 = np.zeros((1, nx))
+    xi0[0, 0] = terrain.h(np.array(xy[0, 0]), np.array(xy[0, 1])) + h_plane
+    x_first, _ = kin.solve(terrain, xy[:1], yaw[:1], steer[:1], xi0, what=" (first instant)")
+    terrain.c0 = float(start[2] - x_first[0, 0])
+    terrain.d["offset_m"] = terrain.c0
+    prev = x_first[0] + np.r_[terrain.c0, np.zeros(nx - 1)]
+    # fine grid, in time order: each block of instants starts from the solution at the last
+    # instant of the block before (warm start from the previous instant)
+    inp = np.column_stack([xy, yaw, steer])
+    new = np.ones(len(tf), bool)
+    new[1:] = np.any(inp[1:] != inp[:-1], axis=1)
+    iu = np.flatnonzero(new)
+    Xu = np.empty((len(iu), nx))
+    res_u = {k: [] for k in ("xi", "X", "c", "Rw", "gap")}
+    B = 25
+    for b in range(0, len(iu), B):
+        sl = iu[b:b + B]
+        xb, rb = kin.solve(terrain, xy[sl], yaw[sl], steer[sl], np.tile(prev, (len(sl), 1)),
+                           what=f" at t={tf[sl[0]] + t0:.3f} s")
+        Xu[b:b + B] = xb
+        prev = xb[-1]
+        for k in res_u:
+            res_u[k].append(rb[k])
+    m = np.searchsorted(iu, np.maximum.accumulate(np.where(new, np.arange(len(tf)), 0)))
+    Xf = Xu[m]
+    rf = {k: np.concatenate(v)[m] for k, v in res_u.items()}
+    # derivatives by central differences on the fine grid (ends: rest, zero)
+    R = euler_zyx(yaw, Xf[:, 2], Xf[:, 1])
+    pos = np.column_stack([kin.body_xy(xy, R), Xf[:, 0]])
+    vel, acc, w_b, dw_b = (np.zeros((len(tf), 3)) for _ in range(4))
+    vel[1:-1] = (pos[2:] - pos[:-2]) / (2 * h)
+    acc[1:-1] = (pos[2:] - 2 * pos[1:-1] + pos[:-2]) / (h * h)
+    w_b[1:-1] = so3_log(np.einsum("nji,njk->nik", R[:-2], R[2:])) / (2 * h)
+    dw_b[1:-1] = (w_b[2:] - w_b[:-2]) / (2 * h)
+    # drive rates: rolling without slip at the contact. The point fixed in the (non-spinning)
+    # wheel frame that is at the contact at t has velocity v_p; the rim's own speed there is
+    # psi_dot * r along the rolling direction d x a (d: centre -> contact, a: axle), and the
+    # material contact point must not move along it: psi_dot = v_p . (d x a) / r.
+    c, Rw, X = rf["c"], rf["Rw"], rf["X"]
+    loc = np.einsum("nwji,nwj->nwi", Rw[1:-1], X[1:-1] - c[1:-1])
+    v_p = (c[2:] + np.einsum("nwij,nwj->nwi", Rw[2:], loc) - c[:-2] - np.einsum("nwij,nwj->nwi", Rw[:-2], loc)) / (2 * h)
+    d = (X[1:-1] - c[1:-1]) / kin.r[None, :, None]
+    tdir = np.cross(d, Rw[1:-1, :, :, 1])
+    psid = np.zeros((len(tf), W))
+    psid[1:-1] = np.sum(v_p * tdir, axis=-1) / rover.r[None, :]
+    if slip_frac is not None:
+        psid *= 1 + slip_frac(np.clip(tf, 0.0, t_end))
+    psi = np.vstack([np.zeros(W), np.cumsum(0.5 * (psid[1:] + psid[:-1]) * h, axis=0)])
+    psi -= psi[2]                                     # 0 at plan time 0 (tf[2] = 0)
+
+    def state(t, exact=False):
+        tau = np.asarray(t, float) - t0
+        e = evaluate(segs, rover, np.clip(tau, 0.0, t_end))
+        i = np.clip(np.floor((tau - tf[0]) / h).astype(int), 0, len(tf) - 2)
+        fr = ((tau - tf[i]) / h)[:, None]
+        lin = lambda A: A[i] * (1 - fr.reshape((-1,) + (1,) * (A.ndim - 1))) + A[i + 1] * fr.reshape((-1,) + (1,) * (A.ndim - 1))
+        sxy = start[:2] + e["P"]
+        x = lin(Xf)
+        st = dict(steer=e["steer"], phi=e["phi"])
+        if exact:                                     # full solve, warm start from the grid
+            x, res = solve_unique(sxy, e["phi"], e["steer"], Xf[i], what=" (stamps)")
+            st["xi"], st["gap"] = res["xi"], res["ngap"]
+        # drive angles: cubic Hermite from psi and psi_dot on the grid
+        f = fr
+        h00, h10, h01, h11 = 2 * f ** 3 - 3 * f ** 2 + 1, f ** 3 - 2 * f ** 2 + f, -2 * f ** 3 + 3 * f ** 2, f ** 3 - f ** 2
+        st["psi"] = h00 * psi[i] + h10 * h * psid[i] + h01 * psi[i + 1] + h11 * h * psid[i + 1]
+        Rt = euler_zyx(e["phi"], x[:, 2], x[:, 1])
+        st.update(R=Rt, pos=np.column_stack([kin.body_xy(sxy, Rt), x[:, 0]]), vel=lin(vel), acc=lin(acc), w_b=lin(w_b),
+                  dw_b=lin(dw_b), susp=x[:, 3:], euler=x[:, :3])
+        st["v_b"] = np.einsum("nji,nj->ni", Rt, st["vel"])
+        # commanded (planned) twist: the plan's planar velocity in the heading frame and yaw rate
+        cph, sph = np.cos(e["phi"]), np.sin(e["phi"])
+        st["cmd_v"] = np.column_stack([cph * e["dP"][:, 0] + sph * e["dP"][:, 1],
+                                       -sph * e["dP"][:, 0] + cph * e["dP"][:, 1], np.zeros(len(tau))])
+        st["cmd_w"] = np.column_stack([np.zeros(len(tau)), np.zeros(len(tau)), e["dphi"]])
+        return st
+
+    info = dict(grid=len(tf), solved=len(iu), susp_range=(Xf[:, 3:].min(axis=0), Xf[:, 3:].max(axis=0)),
+                roll_pitch_max=np.max(np.abs(Xf[:, 1:3]), axis=0), xi_max=np.max(np.abs(rf["xi"])),
+                gap_max=np.max(np.abs(rf["gap"])))
+    return state, terrain, info
+
+
 # ---------------------------------------------------------------------------------- writing
 def clean(x):  # rounding residue (1e-17, -0) printed as 0
     return np.round(x, 12) + 0.0
@@ -526,9 +954,13 @@ def generate(a):
             if abs(chk["h"] - sol["h"]) > 1e-9 or (chk["susp"].size and np.max(np.abs(chk["susp"] - sol["susp"])) > 1e-9):
                 sys.exit("rover: steering moves the suspension on the plane; not supported")
     t_end = segs[-1]["t1"]
-    slip = None
-    if a.slip_sigma > 0:
+    und = a.terrain == "undulating"
+    slip = slip_frac = None
+    if a.slip_sigma > 0 and not und:
         slip = make_slip(segs, rover, a.slip_sigma, a.slip_tau, np.random.default_rng([a.seed, 2]), t_end)
+    elif a.slip_sigma > 0:
+        slip_frac = make_slip_fraction(a.slip_sigma, a.slip_tau, np.random.default_rng([a.seed, 2]), t_end,
+                                       len(rover.wheel_joint))
     t0 = a.t0
     start = np.array(a.start, float)
 
@@ -547,6 +979,8 @@ def generate(a):
         st.update(R=R, pos=pos, vel=vel, acc=acc, w_b=w_b, dw_b=dw_b, v_b=v_b)
         return st
 
+    if und:
+        state, terrain, uinfo = undulating_motion(a, rover, segs, t_end, t0, start, sol["h"], slip_frac)
     os.makedirs(a.out, exist_ok=True)
     for f in ("rover.urdf", "rover.yaml"):
         shutil.copyfile(os.path.join(a.rover, f), os.path.join(a.out, f))
@@ -617,9 +1051,11 @@ def generate(a):
     nang = a.joint_noise_rad if a.joint_noise_rad is not None else float(yget(cfg, "joint_sensors.angle_noise_rad", 0.001))
     nst = a.joint_noise_rad if a.joint_noise_rad is not None else float(yget(cfg, "joint_sensors.steering_noise_rad", nang))
     nwh = a.wheel_noise_rad if a.wheel_noise_rad is not None else float(yget(cfg, "joint_sensors.wheel_noise_rad", 0.0005))
+    if und:
+        sj = state(tj, exact=True)
     J = np.zeros((len(tj), len(rover.columns)))
     for k, c in enumerate(rover.susp_cols):
-        J[:, c] = sol["susp"][k] + r.normal(0, nang, len(tj))
+        J[:, c] = (sj["susp"][:, k] if und else sol["susp"][k]) + r.normal(0, nang, len(tj))
     for k, c in enumerate(rover.steer_cols):
         J[:, c] = sj["steer"][:, k] + r.normal(0, nst, len(tj))
     for w, c in enumerate(rover.wheel_cols):
@@ -631,6 +1067,8 @@ def generate(a):
     if not a.no_cmd:
         tc = stamps(rates["cmd"], t0 + t_end, rs(4), t0)
         sc_ = state(tc)
+        if und:                                      # the plan's twist, not the true one
+            sc_["v_b"], sc_["w_b"] = sc_["cmd_v"], sc_["cmd_w"]
         write_csv(out("cmd.csv"), ["t", "vx", "vy", "vz", "wx", "wy", "wz"],
                   [tc] + [clean(sc_["v_b"][:, i]) for i in range(3)] + [clean(sc_["w_b"][:, i]) for i in range(3)],
                   ["%.5f"] + ["%.6g"] * 6)
@@ -638,7 +1076,7 @@ def generate(a):
     # truth
     tt = t0 + np.arange(0.0, t_end, 1.0 / rates["truth"])   # truth spans every stream
     tt = np.append(tt, t0 + t_end) if t0 + t_end - tt[-1] > 1e-6 else tt
-    st = state(tt)
+    st = state(tt, exact=True) if und else state(tt)
     qs = np.array([quat_from_matrix(R) for R in st["R"]])
     for i in range(1, len(qs)):                      # continuous sign
         if qs[i] @ qs[i - 1] < 0:
@@ -646,17 +1084,31 @@ def generate(a):
     bt = np.stack([np.interp(tt, tg, bias[:, i]) for i in range(3)], axis=1)
     W = len(rover.wheel_joint)
     cols = [tt] + [st["pos"][:, i] for i in range(3)] + [qs[:, i] for i in range(4)]
-    cols += [clean(np.full(len(tt), sol["xi"][w])) for w in range(W)]
+    cols += [clean(st["xi"][:, w] if und else np.full(len(tt), sol["xi"][w])) for w in range(W)]
     cols += [bt[:, i] for i in range(3)] + [clean(st["v_b"][:, i]) for i in range(3)]
     cols += [clean(st["w_b"][:, i]) for i in range(3)]
     hdr = ["t", "x", "y", "z", "qw", "qx", "qy", "qz"] + [f"xi{w + 1}" for w in range(W)] + \
           ["bx", "by", "bz", "vx", "vy", "vz", "wx", "wy", "wz"]
     fm = ["%.5f"] + ["%.6f"] * 3 + ["%.9f"] * 4 + ["%.6g"] * W + ["%.4e"] * 3 + ["%.6g"] * 6
+    if und:                                          # more digits: contacts are rechecked to 1 mm
+        fm = ["%.5f"] + ["%.9f"] * 3 + ["%.12f"] * 4 + ["%.9g"] * W + ["%.4e"] * 3 + ["%.9g"] * 6
     write_csv(out("truth.csv"), hdr, cols, fm)
+    if und:                                          # the terrain, for --check (not a log file)
+        with open(out(TERRAIN_FILE), "w") as f:
+            json.dump(terrain.d, f, indent=1)
 
     dist = sum(np.sum(np.linalg.norm(np.diff(state(np.linspace(sg["t0"], sg["t1"], 400) + t0)["pos"], axis=0), axis=1))
                for sg in segs if sg["kind"] != "rest")
     size = sum(os.path.getsize(out(f)) for f in os.listdir(a.out))
+    if und:
+        print(f"undulating terrain: amplitudes {np.round(terrain.A, 4).tolist()} m, wavelengths "
+              f"{np.round(terrain.d['wavelengths_m'], 3).tolist()} m, max curvature {terrain.max_curvature():.3f} 1/m; "
+              f"{uinfo['solved']} of {uinfo['grid']} grid instants solved ({a.terrain_step} s), max |gap| "
+              f"{max(uinfo['gap_max'], np.max(np.abs(st['gap']))):.1e} m; |roll|,|pitch| max "
+              f"{np.round(np.degrees(uinfo['roll_pitch_max']), 2).tolist()} deg; suspension "
+              f"{np.round(np.degrees(uinfo['susp_range'][0]), 2).tolist()} .. "
+              f"{np.round(np.degrees(uinfo['susp_range'][1]), 2).tolist()} deg; |xi| max "
+              f"{math.degrees(uinfo['xi_max']):.2f} deg")
     print(f"{a.out}: {a.scenario} seed {a.seed}: {len(segs) // 2} legs, {t_end:.1f} s, path {dist:.2f} m, "
           f"slope {a.slope_deg} deg, turn centre x {xc:.3f} m, body height {sol['h']:.4f} m, "
           f"suspension {np.round(sol['susp'], 12).tolist()}, {size / 1e6:.2f} MB")
@@ -739,6 +1191,121 @@ def check(d):
     e = np.column_stack([S["s1"], S["s2"]])[S["valid"] > 0] - pred[S["valid"] > 0]
     print(f"sun - K-15(truth): mean {np.round(e.mean(axis=0), 5)} std {np.round(e.std(axis=0), 5)}, "
           f"valid {int(S['valid'].sum())}/{len(S['t'])}")
+    if os.path.exists(os.path.join(d, TERRAIN_FILE)):
+        check_undulating(d, cfg, rover, T, Gy, Jn, Rs, q)
+
+
+def check_undulating(d, cfg, rover, T, Gy, Jn, Rs, q):
+    """--check for --terrain undulating: contacts, gyro integral, rolling distance."""
+    terrain = Terrain(json.load(open(os.path.join(d, TERRAIN_FILE))))
+    kin = Kinematics(rover)
+    t = T["t"]
+    W = kin.W
+    pos = np.column_stack([T["x"], T["y"], T["z"]])
+    print(f"undulating terrain ({TERRAIN_FILE}): amplitudes {np.round(terrain.A, 4).tolist()} m, "
+          f"wavelengths {np.round(terrain.d['wavelengths_m'], 3).tolist()} m, slope {terrain.d['slope_deg']} deg")
+    # 6a. every wheel on the terrain: forward kinematics from truth pose + joints.csv angles
+    jc = [c for c in rover.susp_cols + rover.steer_cols]
+    Jv = np.column_stack([Jn[rover.columns[c]] for c in jc])
+    Q_lin = np.zeros((len(t), kin.nc))
+    Q_lin[:, jc] = np.column_stack([np.interp(t, Jn["t"], Jv[:, k]) for k in range(len(jc))])
+    Q_fit = Q_lin.copy()                              # local linear fit over +-0.1 s (joint noise)
+    lo, hi = np.searchsorted(Jn["t"], t - 0.1), np.searchsorted(Jn["t"], t + 0.1, side="right")
+    for i in range(len(t)):
+        tj = Jn["t"][lo[i]:hi[i]] - t[i]
+        if len(tj) >= 3:
+            A = np.column_stack([np.ones_like(tj), tj])
+            Q_fit[i, jc] = np.linalg.lstsq(A, Jv[lo[i]:hi[i]], rcond=None)[0][0]
+    for name, Q in (("joints interpolated", Q_lin), ("joints fitted +-0.1 s", Q_fit)):
+        c = kin.contacts(terrain, pos, Rs, Q)
+        gmax = np.max(np.abs(c["ngap"]), axis=0)
+        ok = "PASS" if np.max(gmax) < 1e-3 else "FAIL"
+        print(f"wheel-terrain gap along the normal ({name}), max per wheel [mm]: "
+              f"{np.round(gmax * 1e3, 3).tolist()} -> {ok} (< 1 mm)")
+        if "xi1" in T:
+            xi_t = np.column_stack([T[f"xi{w + 1}"] for w in range(W)])
+            print(f"  contact angle recomputed - truth xi: max {np.degrees(np.max(np.abs(c['xi'] - xi_t))):.4f} deg "
+                  f"(truth |xi| max {np.degrees(np.max(np.abs(xi_t))):.3f} deg)")
+    cfit = kin.contacts(terrain, pos, Rs, Q_fit)
+    # 6a'. suspension angles solved from the truth pose alone (least squares over the wheels'
+    # contacts, steering from the fit) against joints.csv: the angle noise on moving joints
+    if rover.susp_cols:
+        Qs = kin.solve_suspension(terrain, pos, Rs, Q_fit)
+        gs = Qs[:, rover.susp_cols]
+        for k, col in enumerate(rover.susp_cols):
+            nm = rover.columns[col]
+            e = Jn[nm] - np.interp(Jn["t"], t, gs[:, k])
+            inside = (Jn["t"] >= t[0]) & (Jn["t"] <= t[-1])
+            print(f"{nm} (joints.csv) - angle solved from the truth pose: mean {e[inside].mean():+.2e} std "
+                  f"{e[inside].std():.2e} rad; range of the solved angle {np.degrees(gs[:, k].min()):+.2f} .. "
+                  f"{np.degrees(gs[:, k].max()):+.2f} deg")
+    # 6b. gyro integral against the truth attitude: integrate R' = R [w]x at the gyro stamps with
+    # the gyro's axes (minus the truth bias) and the truth rate on the others
+    tg = Gy["t"]
+    sel = (tg >= t[0]) & (tg <= t[-1])
+    tg = tg[sel]
+    wt = np.column_stack([np.interp(tg, t, T[c]) for c in ("wx", "wy", "wz")])
+    wm = wt.copy()
+    meas = [i for i, c in enumerate(("wx", "wy", "wz")) if c in Gy]
+    for i in meas:
+        c = ("wx", "wy", "wz")[i]
+        wm[:, i] = Gy[c][sel] - np.interp(tg, t, T["b" + c[1]])
+    qg = np.array([np.interp(tg, t, q[:, i]) for i in range(4)]).T
+    qg /= np.linalg.norm(qg, axis=1, keepdims=True)
+    Rg = np.array([quat_to_matrix(x) for x in qg])
+    ng = float(yget(cfg, "gyro.noise_rad_s", 0.0031))
+    for label, w in (("truth rate", wt), ("gyro - bias", wm)):
+        R = Rg[0].copy()
+        err = np.zeros(len(tg))
+        yerr = np.zeros(len(tg))
+        for k in range(1, len(tg)):
+            R = R @ rot_axis_vec(0.5 * (w[k] + w[k - 1]) * (tg[k] - tg[k - 1]))
+            e = so3_log(Rg[k].T @ R)
+            err[k] = np.linalg.norm(e)
+            yerr[k] = (Rg[k] @ e)[2]                  # about the site vertical
+        extra = ""
+        if label != "truth rate":
+            exp1 = ng * math.sqrt(np.median(np.diff(tg)) * (tg[-1] - tg[0]))
+            extra = f"; gyro white noise alone gives 1-sigma {math.degrees(exp1):.3f} deg per axis at the end"
+        print(f"attitude integrated from {label} over {tg[-1] - tg[0]:.0f} s - truth: max {math.degrees(err.max()):.4f} deg, "
+              f"final {math.degrees(err[-1]):.4f} deg (heading {math.degrees(yerr[-1]):+.4f} deg){extra}")
+    # 6b'. accelerometer while moving against the specific force from the truth's motion
+    A = read_csv(os.path.join(d, "accel.csv"))
+    g = float(cfg.get("gravity_mps2", 9.80665))
+    L = np.array(yget(cfg, "accelerometer.lever_arm_m", [0, 0, 0]), float)
+    vs = np.einsum("nij,nj->ni", Rs, np.column_stack([T["vx"], T["vy"], T["vz"]]))
+    wb = np.column_stack([T["wx"], T["wy"], T["wz"]])
+    acc, dw = np.gradient(vs, t, axis=0), np.gradient(wb, t, axis=0)
+    fb = np.einsum("nji,nj->ni", Rs, acc + [0, 0, g]) + np.cross(dw, L) + np.cross(wb, np.cross(wb, L))
+    ins = (A["t"] >= t[0]) & (A["t"] <= t[-1])
+    mov = ins & (np.interp(A["t"], t, np.linalg.norm(wb, axis=1) + np.linalg.norm(vs, axis=1)) > 1e-6)
+    e = np.column_stack([A[c][mov] - np.interp(A["t"][mov], t, fb[:, i]) for i, c in enumerate(("ax", "ay", "az"))])
+    print(f"accel while moving - specific force from the truth (R^T (dv/dt + g) + lever arm): mean "
+          f"{np.round(e.mean(axis=0), 5)} std {np.round(e.std(axis=0), 5)} ({mov.sum()} samples; "
+          f"declared noise {yget(cfg, 'accelerometer.noise_mps2', 0.01)}; |dv/dt| max {np.max(np.linalg.norm(acc, axis=1)):.3f} m/s2)")
+    # 6c. rolling distance on straight legs: r dpsi + r dxi against the 3-D ground path of each
+    # contact (rolling without slip) and against the planar distance of the body
+    yaw = np.arctan2(Rs[:, 1, 0], Rs[:, 0, 0])
+    sp = np.linalg.norm(np.column_stack([T["vx"], T["vy"], T["vz"]]), axis=1)
+    straight = np.r_[False, (np.abs(np.diff(yaw)) < 1e-9) & (sp[1:] > 1e-6) & (sp[:-1] > 1e-6)]
+    edges = np.flatnonzero(np.diff(np.r_[0, straight.astype(int), 0]))
+    psi = np.column_stack([Jn[rover.columns[c]] for c in rover.wheel_cols])
+    for s0, s1 in zip(edges[::2] - 1, edges[1::2] - 1):
+        if t[s1] - t[s0] < 2:
+            continue
+        dpsi = np.array([np.interp(t[s1], Jn["t"], psi[:, w]) - np.interp(t[s0], Jn["t"], psi[:, w]) for w in range(W)])
+        dxi = cfit["xi"][s1] - cfit["xi"][s0]
+        ground = np.sum(np.linalg.norm(np.diff(cfit["X"][s0:s1 + 1], axis=1 - 1), axis=2), axis=0)
+        roll_d = rover.r * dpsi + kin.r * dxi
+        planar = np.linalg.norm(pos[s1, :2] - pos[s0, :2])
+        print(f"straight t={t[s0]:.1f}..{t[s1]:.1f}: r dpsi + r dxi - 3-D contact path [mm] "
+              f"{np.round((roll_d - ground) * 1e3, 2).tolist()}; mean r dpsi {np.mean(rover.r * dpsi):.4f} m, "
+              f"3-D path {np.mean(ground):.4f} m, planar body {planar:.4f} m")
+
+
+def rot_axis_vec(v):
+    a = np.linalg.norm(v)
+    return np.eye(3) if a < 1e-300 else rot_axis(v / a, a)
 
 
 def main():
@@ -751,6 +1318,18 @@ def main():
     p.add_argument("--out")
     p.add_argument("--no-cmd", action="store_true", help="do not write cmd.csv")
     p.add_argument("--profile", choices=["trapezoid", "slow-onset"], help="override the scenario's")
+    p.add_argument("--terrain", choices=["plane", "undulating"], default="plane",
+                   help="plane (default): the tilted plane; undulating: sinusoids on it (see Undulating terrain)")
+    p.add_argument("--terrain-amplitude", type=float, default=0.05,
+                   help="undulating: sum of the sinusoids' amplitudes, m (default 0.05)")
+    p.add_argument("--terrain-components", type=int, default=3, help="undulating: number of sinusoids (default 3)")
+    p.add_argument("--terrain-wavelengths", type=float, nargs=2, default=[1.0, 4.0], metavar=("MIN", "MAX"),
+                   help="undulating: wavelength range, m (default 1 4)")
+    p.add_argument("--path-point", choices=["body", "ground"], default="body",
+                   help="undulating: the point whose site x, y follow the plan: the body origin (default) "
+                        "or the point the plane's body height below it along body -z")
+    p.add_argument("--terrain-step", type=float, default=0.01,
+                   help="undulating: internal time step of the pose solve and differences, s (default 0.01)")
     p.add_argument("--slope-deg", type=float, default=5.0)
     p.add_argument("--slope-azimuth-deg", type=float, default=60.0,
                    help="azimuth of the uphill direction, from site +x towards +y")

@@ -45,7 +45,7 @@ def run(log):
 
 class IndependentLogs(unittest.TestCase):
     def check(self, scenario, seed, *extra, final_share=0.002, yaw_deg=0.2, drop=(),
-              rover="rocky7", yaw_over_sigma=None):
+              rover="rocky7", yaw_over_sigma=None, vertical_per_m=None):
         with tempfile.TemporaryDirectory() as tmp:
             log = generate(tmp, scenario, seed, *extra, rover=rover)
             for f in drop:
@@ -66,6 +66,9 @@ class IndependentLogs(unittest.TestCase):
                 self.assertLess(e["position_rmse_over_sigma"], 1.25, where)
                 if yaw_over_sigma is not None:
                     self.assertLess(e["yaw_rmse_over_sigma"], yaw_over_sigma, where)
+                if vertical_per_m is not None:
+                    self.assertLess(abs(e["final_vertical_error_m"]), vertical_per_m * length,
+                                    where)
             for f in ("ekf.csv", "smoothed.csv", "dr.csv"):
                 with open(os.path.join(out, f)) as fh:
                     text = fh.read()
@@ -97,6 +100,13 @@ class IndependentLogs(unittest.TestCase):
         # carried the ICRs' error as a state the EKF's yaw fell 5-6 % behind every turn (7.8°,
         # yaw RMSE/σ 35) and the smoother's was over-confident (RMSE/σ 8.5).
         self.check("tilted-turns", 2, rover="pathfinder", yaw_over_sigma=2.0)
+
+    def test_undulating_with_joint_noise(self):
+        # Undulating ground (sum of sinusoids, 5 cm, wavelengths 1-4 m): the suspension moves and
+        # the contact angles are not zero; rocker, bogie and steering angles carry rover.yaml's
+        # declared white noise (0.001 rad). Issue 13's vertical drift: at most 1 mm per metre.
+        self.check("tilted-multi", 1, "--terrain", "undulating", "--path-point", "ground",
+                   vertical_per_m=0.001)
 
 
 if __name__ == "__main__":
