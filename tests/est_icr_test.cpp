@@ -237,6 +237,30 @@ TEST(EstIcr, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
   RecordProperty("worst_relative_error", std::to_string(worst));
 }
 
+// A skid-steered four-wheel rover has its own compiled covariance kernel (20 states): Φ P Φᵀ over
+// F's nonzeros equals the dense form for a random sparse F (the update kernels are checked
+// against dense algebra by EkfSlipUpdateMatchesDenseReferenceWithNumericH above).
+TEST(EstIcr, FourWheelIcrKernelMatchesDense) {
+  constexpr int n = ekfStates(kWheels, 0, 0, kIcrStates);
+  static_assert(n == 20);
+  std::mt19937 rng(94);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int trial = 0; trial < 5; ++trial) {
+    EkfMatrix F = EkfMatrix::Zero(n, n);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        if (u(rng) < 0.15) F(i, j) = 2.0 * u(rng) - 1.0;
+    EkfMatrix L(n, n);
+    for (int j = 0; j < n; ++j) L.col(j) = randomVector<n>(rng);
+    const EkfMatrix P = L * L.transpose() + EkfMatrix::Identity(n, n);
+    const double dt = 0.05;
+    const EkfMatrix Phi = EkfMatrix::Identity(n, n) + F * dt + 0.5 * F * dt * F * dt;
+    const EkfMatrix dense = Phi * P * Phi.transpose();
+    EXPECT_LE((detail::propagateCovariance(F, dt, P) - dense).cwiseAbs().maxCoeff(),
+              1e-12 * dense.cwiseAbs().maxCoeff());
+  }
+}
+
 // The smoother's slip residual with the δ block (with and without c, with the command's or the
 // state's ω_z): analytic Jacobians against the Jet Jacobian of the templated model and against
 // central differences.

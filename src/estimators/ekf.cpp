@@ -464,6 +464,9 @@ void withStateCount(int n, F&& f) {
     case ekfStates(4, 0, kAccelBiasStates):  // a four-wheel rover with a real IMU
       f.template operator()<ekfStates(4, 0, kAccelBiasStates)>();
       break;
+    case ekfStates(4, 0, 0, kIcrStates):  // a skid-steered four-wheel rover (Pathfinder)
+      f.template operator()<ekfStates(4, 0, 0, kIcrStates)>();
+      break;
     // (a skid-steered four-wheel rover with a real IMU, ekfStates(4, 0, 3, 1), is 23 as well)
     default:
       f.template operator()<Eigen::Dynamic>();
