@@ -149,18 +149,9 @@ TEST(EstAccelBias, GravityUpdateMatchesDenseReferenceWithNumericH) {
     }
     EXPECT_GT(H.middleCols<3>(kA).cwiseAbs().maxCoeff(), 0.05);  // ~1/g
     const Vec2d r = r_of(EkfVector::Zero(kN));
-    const Eigen::Matrix2d S = H * P * H.transpose() + m.covariance;
-    const Eigen::Matrix<double, kN, 2> K = P * H.transpose() * S.inverse();
-    const EkfVector dx = K * r;
-    const Eigen::Matrix<double, kN, kN> IKH = Eigen::Matrix<double, kN, kN>::Identity() - K * H;
-    Eigen::Matrix<double, kN, kN> P_ref =
-        IKH * P * IKH.transpose() + K * m.covariance * K.transpose();
-    Eigen::Matrix<double, kN, kN> G = Eigen::Matrix<double, kN, kN>::Identity();
-    G.block<3, 3>(I::kTheta, I::kTheta) = detail::resetJacobian(dx.segment<3>(I::kTheta));
-    P_ref = G * P_ref * G.transpose();
-    const double err =
-        (Eigen::MatrixXd(ekf.covariance()) - Eigen::MatrixXd(P_ref)).cwiseAbs().maxCoeff() /
-        P_ref.cwiseAbs().maxCoeff();
+    const testing::DenseUpdate ref = testing::denseEkfUpdate(P, H, m.covariance, r);
+    const EkfVector& dx = ref.dx;
+    const double err = testing::relativeDifference(ekf.covariance(), ref.P);
     worst = std::max(worst, err);
     EXPECT_LE(err, 1e-6) << "trial " << trial;
     const EkfState y = ekf.state(), y_ref = testing::ekfBoxplus(x, dx);
@@ -245,22 +236,7 @@ TEST(EstAccelBias, ProcessNoiseIsTheDeclaredRandomWalk) {
 TEST(EstAccelBias, FourWheelKernelMatchesDense) {
   constexpr int n = ekfStates(4, 0, kAccelBiasStates);
   static_assert(n == 22);
-  std::mt19937 rng(93);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int trial = 0; trial < 5; ++trial) {
-    EkfMatrix F = EkfMatrix::Zero(n, n);
-    for (int i = 0; i < n; ++i)
-      for (int j = 0; j < n; ++j)
-        if (u(rng) < 0.15) F(i, j) = 2.0 * u(rng) - 1.0;
-    EkfMatrix L(n, n);
-    for (int j = 0; j < n; ++j) L.col(j) = randomVector<n>(rng);
-    const EkfMatrix P = L * L.transpose() + EkfMatrix::Identity(n, n);
-    const double dt = 0.05;
-    const EkfMatrix Phi = EkfMatrix::Identity(n, n) + F * dt + 0.5 * F * dt * F * dt;
-    const EkfMatrix dense = Phi * P * Phi.transpose();
-    EXPECT_LE((detail::propagateCovariance(F, dt, P) - dense).cwiseAbs().maxCoeff(),
-              1e-12 * dense.cwiseAbs().maxCoeff());
-  }
+  testing::expectCovarianceKernelMatchesDense(n, 93);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -214,17 +214,9 @@ TEST(EstIcr, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
         const Eigen::Matrix<double, 7, 1> s = s_of(x);
         const Eigen::Matrix4d R = rover::slipCovariance(cfg.slip_noise, js, wheel, s.head<3>(),
                                                         s.segment<3>(3), Jt.leftCols<6>());
-        const Eigen::Matrix4d S = H * P * H.transpose() + R;
-        const Eigen::Matrix<double, kN, 4> K = P * H.transpose() * S.inverse();
-        const EkfVector dx = K * r;
-        const Eigen::Matrix<double, kN, kN> IKH = Eigen::Matrix<double, kN, kN>::Identity() - K * H;
-        Eigen::Matrix<double, kN, kN> P_ref = IKH * P * IKH.transpose() + K * R * K.transpose();
-        Eigen::Matrix<double, kN, kN> G = Eigen::Matrix<double, kN, kN>::Identity();
-        G.block<3, 3>(I::kTheta, I::kTheta) = detail::resetJacobian(dx.segment<3>(I::kTheta));
-        P_ref = G * P_ref * G.transpose();
-        const double err =
-            (Eigen::MatrixXd(ekf.covariance()) - Eigen::MatrixXd(P_ref)).cwiseAbs().maxCoeff() /
-            P_ref.cwiseAbs().maxCoeff();
+        const testing::DenseUpdate ref = testing::denseEkfUpdate(P, H, R, r);
+        const EkfVector& dx = ref.dx;
+        const double err = testing::relativeDifference(ekf.covariance(), ref.P);
         worst = std::max(worst, err);
         EXPECT_LE(err, 1e-7) << "cmd " << has_cmd << " accel " << accel << " wheel " << wheel;
         const EkfState y = ekf.state(), y_ref = boxplus(x, dx);
@@ -243,22 +235,7 @@ TEST(EstIcr, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
 TEST(EstIcr, FourWheelIcrKernelMatchesDense) {
   constexpr int n = ekfStates(kWheels, 0, 0, kIcrStates);
   static_assert(n == 20);
-  std::mt19937 rng(94);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int trial = 0; trial < 5; ++trial) {
-    EkfMatrix F = EkfMatrix::Zero(n, n);
-    for (int i = 0; i < n; ++i)
-      for (int j = 0; j < n; ++j)
-        if (u(rng) < 0.15) F(i, j) = 2.0 * u(rng) - 1.0;
-    EkfMatrix L(n, n);
-    for (int j = 0; j < n; ++j) L.col(j) = randomVector<n>(rng);
-    const EkfMatrix P = L * L.transpose() + EkfMatrix::Identity(n, n);
-    const double dt = 0.05;
-    const EkfMatrix Phi = EkfMatrix::Identity(n, n) + F * dt + 0.5 * F * dt * F * dt;
-    const EkfMatrix dense = Phi * P * Phi.transpose();
-    EXPECT_LE((detail::propagateCovariance(F, dt, P) - dense).cwiseAbs().maxCoeff(),
-              1e-12 * dense.cwiseAbs().maxCoeff());
-  }
+  testing::expectCovarianceKernelMatchesDense(n, 94);
 }
 
 // The smoother's slip residual with the δ block (with and without c, with the command's or the

@@ -1,7 +1,10 @@
 // Shared test helpers for the EKF's nominal and error states: a random nominal state and
 // x̂ ⊞ δx in the filter's error coordinates (est_ekf_process_jacobian_test.cpp,
-// est_common_slip_test.cpp).
+// est_common_slip_test.cpp, est_accel_bias_test.cpp, est_icr_test.cpp), the textbook update
+// those tests compare the filter's with, and a check of a compiled covariance kernel.
 #pragma once
+
+#include <gtest/gtest.h>
 
 #include <random>
 
@@ -58,6 +61,54 @@ inline est::EkfState ekfBoxplus(const est::EkfState& x, const est::EkfVector& dx
   if (c) y.common_slip += dx.segment<2>(I::commonSlip(wheels));
   if (a) y.accel_bias += dx.segment<3>(I::accelBias(wheels, c ? est::kCommonSlipStates : 0));
   return y;
+}
+
+/// The textbook EKF update the filter's expanded, sparse one must equal: K = P Hᵀ (H P Hᵀ + R)⁻¹,
+/// dx = K r, P⁺ = G [(I − KH) P (I − KH)ᵀ + K R Kᵀ] Gᵀ with the attitude reset
+/// G = est::detail::resetJacobian(dx_θ) (dense matrices throughout).
+struct DenseUpdate {
+  est::EkfVector dx;
+  Eigen::MatrixXd P;
+};
+inline DenseUpdate denseEkfUpdate(const Eigen::MatrixXd& P, const Eigen::MatrixXd& H,
+                                  const Eigen::MatrixXd& R, const Eigen::VectorXd& r) {
+  const Eigen::Index n = P.rows();
+  const Eigen::MatrixXd K = P * H.transpose() * (H * P * H.transpose() + R).inverse();
+  DenseUpdate u;
+  u.dx = K * r;
+  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+  Eigen::MatrixXd G = Eigen::MatrixXd::Identity(n, n);
+  G.block<3, 3>(est::EkfIndex::kTheta, est::EkfIndex::kTheta) =
+      est::detail::resetJacobian(u.dx.segment<3>(est::EkfIndex::kTheta));
+  u.P = G * (IKH * P * IKH.transpose() + K * R * K.transpose()) * G.transpose();
+  return u;
+}
+/// max |A − B| / max |B|.
+inline double relativeDifference(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) {
+  return (A - B).cwiseAbs().maxCoeff() / B.cwiseAbs().maxCoeff();
+}
+
+/// The compiled covariance kernel for n states (est::detail::propagateCovariance) against the
+/// dense Φ P Φᵀ, Φ = I + F dt + ½ (F dt)², for five random sparse F (15 % nonzero) and random P.
+inline void expectCovarianceKernelMatchesDense(int n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int trial = 0; trial < 5; ++trial) {
+    est::EkfMatrix F = est::EkfMatrix::Zero(n, n);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        if (u(rng) < 0.15) F(i, j) = 2.0 * u(rng) - 1.0;
+    est::EkfMatrix L(n, n);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) L(i, j) = 2.0 * u(rng) - 1.0;
+    const est::EkfMatrix P = L * L.transpose() + est::EkfMatrix::Identity(n, n);
+    const double dt = 0.05;
+    const est::EkfMatrix Phi = est::EkfMatrix::Identity(n, n) + F * dt + 0.5 * F * dt * F * dt;
+    const est::EkfMatrix dense = Phi * P * Phi.transpose();
+    EXPECT_LE((est::detail::propagateCovariance(F, dt, P) - dense).cwiseAbs().maxCoeff(),
+              1e-12 * dense.cwiseAbs().maxCoeff())
+        << "n " << n << " trial " << trial;
+  }
 }
 
 }  // namespace traverse::testing
