@@ -118,7 +118,8 @@ Dynamics dynamics(const Ekf& ekf, const Variant& v, const io::RoverConfig& c, co
 }
 
 EkfState boxplus(const EkfState& x, const EkfVector& dx) {
-  return testing::ekfBoxplus(x, dx);
+  // The layouts here: no c, b_a or not.
+  return testing::ekfBoxplus(x, dx, 0, dx.size() > ekfStates(static_cast<int>(x.xi.size())));
 }
 
 /// d/dt of the error state δx(t) = x(t) ⊟ x̂(t) at t = 0 when the true state starts at

@@ -264,7 +264,7 @@ TEST(EstIcr, SmootherSlipResidualJacobiansMatchNumeric) {
       d.nominal_jacobian = randomVector<8>(rng, 0.3).reshaped(4, 2);
       d.nominal_at = randomVector<2>(rng, 0.2);
     }
-    const smoother::SlipResidual f(wheel, kWheels, &d, common, true);
+    const smoother::SlipResidual f(wheel, kWheels, &d, common ? 2 : 0, true);
     ASSERT_EQ(f.parameter_block_sizes().size(), common ? 5u : 4u);
     // z = (v, ω, ξ (4), c (2), δ); c unused without the block.
     constexpr int kZ = 13;
@@ -299,7 +299,7 @@ TEST(EstIcr, SmootherSlipResidualJacobiansMatchNumeric) {
       using T = typename std::decay_t<decltype(x)>::Scalar;
       return f.residual<T>(Vec3<T>(x.template head<3>()), Vec3<T>(x.template segment<3>(3)),
                            Eigen::Matrix<T, kWheels, 1>(x.template segment<kWheels>(6)),
-                           Vec2<T>(x.template segment<2>(10)), x[12]);
+                           Vec3<T>(x[10], x[11], T(0)), x[12]);
     };
     EXPECT_LE((r - model(z)).cwiseAbs().maxCoeff(), 1e-12);
     Eigen::Matrix<double, 4, kZ> Jjet = testing::autodiffJacobian<4, kZ>(model, z);

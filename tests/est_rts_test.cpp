@@ -2,6 +2,7 @@
 // states, the backward pass against the batch least-squares solution of a linear-Gaussian chain
 // (for which RTS is exact), and the smoother on a bundled log (one node per filter node, the
 // last equal to the filter's, attitude no worse).
+#include <array>
 #include <random>
 
 #include <gmock/gmock.h>
@@ -26,11 +27,13 @@ TEST(EstRts, StateDifferenceAndPlusAreInversesAtRandomStates) {
   std::mt19937 rng(7);
   for (int trial = 0; trial < 50; ++trial) {
     const int wheels = 4 + trial % 3;
-    const bool c = trial % 2 == 0, ab = trial % 4 < 2;  // every combination of c and b_a
+    // every combination of c (none, c_x c_y, with c_ω) and b_a
+    const int c = std::array{0, 2, 3}[trial % 3];
+    const bool ab = trial % 4 < 2;
     const EkfState a = testing::randomEkfState(rng, wheels, c, ab);
     const EkfState b = testing::randomEkfState(rng, wheels, c, ab);
     const EkfVector d = ekfStateDifference(a, b, wheels, c, ab);
-    ASSERT_EQ(d.size(), ekfStates(wheels, c ? kCommonSlipStates : 0, ab ? kAccelBiasStates : 0));
+    ASSERT_EQ(d.size(), ekfStates(wheels, c, ab ? kAccelBiasStates : 0));
     const EkfState back = ekfStatePlus(b, d, wheels, c, ab);
     EXPECT_LT(so3::boxminus(back.q_site_body, a.q_site_body).norm(), 1e-12);
     EXPECT_LT((back.p_site - a.p_site).norm(), 1e-12);
@@ -38,7 +41,7 @@ TEST(EstRts, StateDifferenceAndPlusAreInversesAtRandomStates) {
     EXPECT_LT((back.common_slip - a.common_slip).norm(), 1e-12);
     EXPECT_LT((back.accel_bias - a.accel_bias).norm(), 1e-12);
     // The filter's own ⊞ (the tests' reference) agrees.
-    const EkfState ref = testing::ekfBoxplus(b, d);
+    const EkfState ref = testing::ekfBoxplus(b, d, c, ab);
     EXPECT_LT(so3::boxminus(ref.q_site_body, back.q_site_body).norm(), 1e-12);
   }
   // Hand-checked: 0.1 rad about z between identity and Rz(0.1), 2 m in x.
@@ -47,7 +50,7 @@ TEST(EstRts, StateDifferenceAndPlusAreInversesAtRandomStates) {
   a.xi.setZero(), b.xi.setZero();
   a.q_site_body = Quatd(Eigen::AngleAxisd(0.1, Vec3d::UnitZ()));
   a.p_site = Vec3d(2, 0, 0);
-  const EkfVector d = ekfStateDifference(a, b, 4, false);
+  const EkfVector d = ekfStateDifference(a, b, 4, 0);
   EXPECT_NEAR(d[I::kTheta + 2], 0.1, 1e-15);
   EXPECT_NEAR(d[I::kPos], 2.0, 1e-15);
   EXPECT_NEAR(d.norm(), std::hypot(0.1, 2.0), 1e-15);
@@ -99,7 +102,7 @@ TEST(EstRts, BackwardPassEqualsBatchLeastSquaresOnALinearChain) {
     P = 0.5 * (P + P.transpose());
     chain.points.push_back({x, P, {}, {}, {}});
   }
-  const RtsStates s = rtsBackward(chain, wheels, false);
+  const RtsStates s = rtsBackward(chain, wheels, 0);
 
   // Batch least squares. The position follows the velocities exactly, so the unknowns are
   // u = (x_0, v_0 … v_{N−1}) and the states (x_k, v_k) = T u with x_k = x_0 + dt Σ_{j<k} v_j.

@@ -69,6 +69,26 @@ TEST_F(IoRoverConfig, CommonSlipIsReadAndNeedsBothAxes) {
   expectError("format: 1\nslip_noise:\n  common_time_constant_s: 0\n", 3, "common_time_constant_s");
 }
 
+// slip_noise.common_yaw_rate_rad_s: c's third state, c_ω; only beside the other two; saved.
+TEST_F(IoRoverConfig, CommonYawSlipIsReadSavedAndNeedsTheOtherTwo) {
+  const RoverConfig c =
+      loadRoverConfig(write("format: 1\nslip_noise:\n  common_longitudinal_mps: 0.01\n"
+                            "  common_lateral_mps: 0.004\n  common_yaw_rate_rad_s: 0.003\n"));
+  EXPECT_EQ(c.slip_noise.common_yaw_rate_rad_s, 0.003);
+  EXPECT_EQ(c.slip_noise.commonSlipStates(), 3);
+  const std::filesystem::path saved = dir_ / "saved.yaml";
+  saveRoverConfig(saved, c);
+  EXPECT_EQ(loadRoverConfig(saved).slip_noise.common_yaw_rate_rad_s, 0.003);
+  const RoverConfig two =
+      loadRoverConfig(write("format: 1\nslip_noise:\n  common_longitudinal_mps: 0.01\n"
+                            "  common_lateral_mps: 0.004\n"));
+  EXPECT_EQ(two.slip_noise.commonSlipStates(), 2);
+  EXPECT_EQ(loadRoverConfig(write("format: 1\n")).slip_noise.commonSlipStates(), 0);
+  expectError("format: 1\nslip_noise:\n  common_yaw_rate_rad_s: 0.003\n", 3,
+              "needs common_longitudinal_mps and common_lateral_mps");
+  expectError("format: 1\nslip_noise:\n  common_yaw_rate_rad_s: -1\n", 3, "common_yaw_rate_rad_s");
+}
+
 TEST_F(IoRoverConfig, GyroRatePerturbationIsOptionalAndSaved) {
   EXPECT_FALSE(loadRoverConfig(write("format: 1\n")).gyro.rate_perturbation_rad_s2_per_sqrt_hz);
   const RoverConfig c =

@@ -101,7 +101,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
       three_axis_(three_axis_gyro),
       has_cmd_(has_cmd),
       nw_(geometry.numWheels()),
-      nc_(config.slip_noise.hasCommonSlip() ? kCommonSlipStates : 0),
+      nc_(config.slip_noise.commonSlipStates()),
       kc_(I::commonSlip(nw_)),
       na_(config.accel.hasBias() ? kAccelBiasStates : 0),
       ka_(I::accelBias(nw_, nc_)),
@@ -161,6 +161,7 @@ Ekf::Ekf(const io::RoverConfig& config, const rover::RoverGeometry& geometry,
     const auto& sn = config.slip_noise;
     P_(kc_, kc_) = sn.common_longitudinal_mps * sn.common_longitudinal_mps;
     P_(kc_ + 1, kc_ + 1) = sn.common_lateral_mps * sn.common_lateral_mps;
+    if (nc_ == 3) P_(kc_ + 2, kc_ + 2) = sn.common_yaw_rate_rad_s * sn.common_yaw_rate_rad_s;
   }
   if (nk_ > 0) P_(kk_, kk_) = std::pow(config.skid_steer->icrHalfTrackSigma(), 2);
   if (na_ > 0) {
@@ -232,7 +233,7 @@ void Ekf::linearise(const EkfInputs& in, Linearisation* out) const {
   F.block<3, 3>(I::kPos, I::kTheta) = -R * so3::skew(v);
   F.block<3, 3>(I::kPos, I::kVel) = R;
   F.block(I::kXi, I::kXi, nw_, nw_).diagonal().setConstant(d.a_xi);
-  if (nc_ > 0) F.block<2, 2>(kc_, kc_).diagonal().setConstant(d.a_c);
+  if (nc_ > 0) F.block(kc_, kc_, nc_, nc_).diagonal().setConstant(d.a_c);
   out->v_dot.setZero();
   if (d.accel_driven &&
       !in.accel_gap) {  // O-4, linearised with Jets through the shared accelerometer model
@@ -296,6 +297,7 @@ void Ekf::propagate(double dt, const EkfInputs& in) {
     const auto& sn = config_.slip_noise;
     qc[kc_] = -2.0 * d.a_c * sn.common_longitudinal_mps * sn.common_longitudinal_mps;
     qc[kc_ + 1] = -2.0 * d.a_c * sn.common_lateral_mps * sn.common_lateral_mps;
+    if (nc_ == 3) qc[kc_ + 2] = -2.0 * d.a_c * sn.common_yaw_rate_rad_s * sn.common_yaw_rate_rad_s;
   }
   if (na_ > 0)
     qc.segment<3>(ka_).setConstant(std::pow(config_.accel.bias_random_walk_mps2_per_sqrt_s, 2));
@@ -447,8 +449,8 @@ void innovationKernel(const double* P_data, int n, const EkfRows<M>& H_in,
 }
 
 /// Calls f.template operator()<N>() with N the state count n at compile time for the rovers
-/// traverse ships (4 and 6 wheels, with the common slip, a 4-wheel rover with an accelerometer
-/// bias), Eigen::Dynamic otherwise: the same operations in the same order either way.
+/// traverse ships (4 and 6 wheels, with the common slip (2 or 3 states), a 4-wheel rover with an
+/// accelerometer bias), Eigen::Dynamic otherwise: the same operations in the same order either way.
 template <typename F>
 void withStateCount(int n, F&& f) {
   switch (n) {
@@ -458,8 +460,11 @@ void withStateCount(int n, F&& f) {
     case ekfStates(6):
       f.template operator()<ekfStates(6)>();
       break;
-    case ekfStates(6, kCommonSlipStates):
-      f.template operator()<ekfStates(6, kCommonSlipStates)>();
+    case ekfStates(6, 2):  // the common slip c_x, c_y
+      f.template operator()<ekfStates(6, 2)>();
+      break;
+    case ekfStates(6, 3):  // with its yaw rate c_ω
+      f.template operator()<ekfStates(6, 3)>();
       break;
     case ekfStates(4, 0, kAccelBiasStates):  // a four-wheel rover with a real IMU
       f.template operator()<ekfStates(4, 0, kAccelBiasStates)>();
@@ -530,7 +535,7 @@ void Ekf::absorb(const EkfVector& dx) {
   v_p_ += dx.segment<3>(I::kVel);
   xi_ += dx.segment(I::kXi, nw_);
   b_ += dx.segment<3>(I::kBias);
-  if (nc_ > 0) c_ += dx.segment<2>(kc_);
+  if (nc_ > 0) c_.head(nc_) += dx.segment(kc_, nc_);
   if (na_ > 0) ba_ += dx.segment<3>(ka_);
   if (nk_ > 0) icr_ += dx[kk_];
   // Reset Jacobian of the attitude error: δθ⁺ ≈ (I − ½[dθ]×) δθ.
@@ -585,9 +590,11 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
       continue;
     }
     // Re-linearise at the state the previous wheel's update left (sequential processing).
-    // The wheels roll as if the body moved at v + c (c: their common slip, zero without it).
+    // The wheels roll as if the body moved at v + (c_x, c_y, 0) and turned at ω + (0, 0, c_ω)
+    // (c: their common slip, zero without it).
     Eigen::Matrix<double, 7, 1> s;
-    s << v_now() + Vec3d(c_.x(), c_.y(), 0.0), omega<double>(w_p_, b_, in), xi_[i];
+    s << v_now() + Vec3d(c_.x(), c_.y(), 0.0), omega<double>(w_p_, b_, in) + Vec3d(0, 0, c_.z()),
+        xi_[i];
     Eigen::Matrix<double, 4, 7> J;
     Eigen::Matrix<double, 4, 7> Jt;  // ∂t/∂s: the noise is the constraint's (nominal: exact)
     Vec4d H_icr;
@@ -601,6 +608,7 @@ void Ekf::updateSlip(const JointSample& js, const EkfInputs& in) {
     if (hybrid) H.block<4, 3>(0, I::kBias) = -J.middleCols<3>(3) * gyroAxes(in);
     H.col(I::kXi + i) = J.col(6);
     if (nc_ > 0) H.block<4, 2>(0, kc_) = J.leftCols<2>();
+    if (nc_ == 3) H.col(kc_ + 2) = J.col(5);
     if (nk_ > 0) H.col(kk_) = H_icr;
     ++stats_.slip_updates;
     if (!update<4>(r, H, Ri, options_.gating ? gate4_ : 0.0)) ++stats_.slip_rejected;
@@ -612,7 +620,7 @@ void Ekf::commonSlipJump(const JointSample& js, const EkfInputs& in, const Twist
       options_.velocity == EkfOptions::VelocityModel::kAccelDriven && in.has_accel;
   Eigen::Matrix<double, 7, 1> s;
   s << (accel_driven ? v_p_ : velocity<double>(v_p_, in)) + Vec3d(c_.x(), c_.y(), 0.0),
-      omega<double>(w_p_, b_, in), 0.0;
+      omega<double>(w_p_, b_, in) + Vec3d(0, 0, c_.z()), 0.0;
   // Each wheel's contact-point mismatch (rows 0-2 of r = nominal − t) in the body frame,
   // R_l r: under no jump, −(δv + δc) plus the wheel's noise. Their mean over the wheels and its
   // covariance (v + c from P, the rows' noise divided by the wheel count).

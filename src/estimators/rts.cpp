@@ -9,9 +9,9 @@ namespace traverse::est {
 
 using I = EkfIndex;
 
-EkfVector ekfStateDifference(const EkfState& a, const EkfState& b, int wheels, bool common_slip,
+EkfVector ekfStateDifference(const EkfState& a, const EkfState& b, int wheels, int common_slip,
                              bool accel_bias, bool icr) {
-  const int nc = common_slip ? kCommonSlipStates : 0, na = accel_bias ? kAccelBiasStates : 0;
+  const int nc = common_slip, na = accel_bias ? kAccelBiasStates : 0;
   EkfVector d = EkfVector::Zero(ekfStates(wheels, nc, na, icr ? kIcrStates : 0));
   d.segment<3>(I::kTheta) = so3::boxminus(a.q_site_body, b.q_site_body);
   d.segment<3>(I::kRate) = a.w_p - b.w_p;
@@ -19,15 +19,15 @@ EkfVector ekfStateDifference(const EkfState& a, const EkfState& b, int wheels, b
   d.segment<3>(I::kVel) = a.v_p - b.v_p;
   d.segment<3>(I::kBias) = a.bias - b.bias;
   d.segment(I::kXi, wheels) = a.xi.head(wheels) - b.xi.head(wheels);
-  if (common_slip) d.segment<2>(I::commonSlip(wheels)) = a.common_slip - b.common_slip;
+  if (nc > 0) d.segment(I::commonSlip(wheels), nc) = (a.common_slip - b.common_slip).head(nc);
   if (accel_bias) d.segment<3>(I::accelBias(wheels, nc)) = a.accel_bias - b.accel_bias;
   if (icr) d[I::icr(wheels, nc, na)] = a.icr - b.icr;
   return d;
 }
 
-EkfState ekfStatePlus(const EkfState& x, const EkfVector& delta, int wheels, bool common_slip,
+EkfState ekfStatePlus(const EkfState& x, const EkfVector& delta, int wheels, int common_slip,
                       bool accel_bias, bool icr) {
-  const int nc = common_slip ? kCommonSlipStates : 0, na = accel_bias ? kAccelBiasStates : 0;
+  const int nc = common_slip, na = accel_bias ? kAccelBiasStates : 0;
   EkfState out = x;
   out.q_site_body = so3::boxplus(x.q_site_body, Vec3d(delta.segment<3>(I::kTheta))).normalized();
   out.w_p += delta.segment<3>(I::kRate);
@@ -35,7 +35,7 @@ EkfState ekfStatePlus(const EkfState& x, const EkfVector& delta, int wheels, boo
   out.v_p += delta.segment<3>(I::kVel);
   out.bias += delta.segment<3>(I::kBias);
   out.xi.head(wheels) += delta.segment(I::kXi, wheels);
-  if (common_slip) out.common_slip += delta.segment<2>(I::commonSlip(wheels));
+  if (nc > 0) out.common_slip.head(nc) += delta.segment(I::commonSlip(wheels), nc);
   if (accel_bias) out.accel_bias += delta.segment<3>(I::accelBias(wheels, nc));
   if (icr) out.icr += delta[I::icr(wheels, nc, na)];
   return out;
@@ -63,7 +63,7 @@ Eigen::MatrixXd gain(const Eigen::MatrixXd& P, const Eigen::MatrixXd& phi,
 
 }  // namespace
 
-RtsStates rtsBackward(const RtsChain& chain, int wheels, bool common_slip, bool accel_bias,
+RtsStates rtsBackward(const RtsChain& chain, int wheels, int common_slip, bool accel_bias,
                       bool icr) {
   RtsStates s;
   const size_t n = chain.points.size();
@@ -88,7 +88,7 @@ Trajectory rtsSmooth(const Ekf& ekf, const RtsChain& chain) {
   const int wheels =
       static_cast<int>(chain.points.empty() ? 0 : chain.points[0].posterior.xi.size());
   const RtsStates s =
-      rtsBackward(chain, wheels, ekf.hasCommonSlip(), ekf.hasAccelBias(), ekf.hasIcr());
+      rtsBackward(chain, wheels, ekf.commonSlipStates(), ekf.hasAccelBias(), ekf.hasIcr());
   Trajectory tr;
   tr.name = "rts";
   tr.has_covariance = true;

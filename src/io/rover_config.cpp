@@ -120,11 +120,11 @@ void readSun(const YamlReader& r, const YAML::Node& root, SunConfig& sun) {
 }
 
 void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
-  const YAML::Node s =
-      r.section(root, "slip_noise",
-                {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s",
-                 "longitudinal_per_yaw_rate_m", "lateral_per_yaw_rate_m", "longitudinal_per_speed",
-                 "common_longitudinal_mps", "common_lateral_mps", "common_time_constant_s"});
+  const YAML::Node s = r.section(
+      root, "slip_noise",
+      {"longitudinal_mps", "lateral_mps", "normal_mps", "spin_rad_s", "longitudinal_per_yaw_rate_m",
+       "lateral_per_yaw_rate_m", "longitudinal_per_speed", "common_longitudinal_mps",
+       "common_lateral_mps", "common_yaw_rate_rad_s", "common_time_constant_s"});
   auto& sn = c.slip_noise;
   sn.longitudinal_mps =
       r.number(s, "slip_noise", "longitudinal_mps", sn.longitudinal_mps, 1e-9, 10.0);
@@ -141,11 +141,16 @@ void readNoise(const YamlReader& r, const YAML::Node& root, RoverConfig& c) {
       r.number(s, "slip_noise", "common_longitudinal_mps", sn.common_longitudinal_mps, 0.0, 10.0);
   sn.common_lateral_mps =
       r.number(s, "slip_noise", "common_lateral_mps", sn.common_lateral_mps, 0.0, 10.0);
+  sn.common_yaw_rate_rad_s =
+      r.number(s, "slip_noise", "common_yaw_rate_rad_s", sn.common_yaw_rate_rad_s, 0.0, 10.0);
   sn.common_time_constant_s =
       r.number(s, "slip_noise", "common_time_constant_s", sn.common_time_constant_s, 1e-3, 1e6);
   if (sn.hasCommonSlip() && !(sn.common_longitudinal_mps > 0 && sn.common_lateral_mps > 0))
     r.fail(s, "slip_noise",
            "common_longitudinal_mps and common_lateral_mps must both be > 0 when either is");
+  if (sn.common_yaw_rate_rad_s > 0 && !sn.hasCommonSlip())
+    r.fail(s["common_yaw_rate_rad_s"], "slip_noise.common_yaw_rate_rad_s",
+           "needs common_longitudinal_mps and common_lateral_mps > 0 as well");
   const YAML::Node ss = r.section(root, "skid_steer",
                                   {"icr_y_left_m", "icr_y_right_m", "icr_half_track_sigma_m",
                                    "icr_half_track_random_walk_m_per_sqrt_s"});
@@ -408,8 +413,10 @@ void saveRoverConfig(const std::filesystem::path& yaml_file, const RoverConfig& 
   }
   if (s.hasCommonSlip()) {  // the common slip state, when declared
     out << YAML::Key << "common_longitudinal_mps" << YAML::Value << num(s.common_longitudinal_mps)
-        << YAML::Key << "common_lateral_mps" << YAML::Value << num(s.common_lateral_mps)
-        << YAML::Key << "common_time_constant_s" << YAML::Value << num(s.common_time_constant_s);
+        << YAML::Key << "common_lateral_mps" << YAML::Value << num(s.common_lateral_mps);
+    if (s.common_yaw_rate_rad_s > 0)
+      out << YAML::Key << "common_yaw_rate_rad_s" << YAML::Value << num(s.common_yaw_rate_rad_s);
+    out << YAML::Key << "common_time_constant_s" << YAML::Value << num(s.common_time_constant_s);
   }
   out << YAML::EndMap;
   if (c.skid_steer) {

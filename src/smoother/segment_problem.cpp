@@ -101,7 +101,7 @@ namespace {
 /// Parameter blocks of one node. Quaternion storage: x, y, z, w.
 struct NodeBlocks {
   double q[4], x[3], v[3], w[3], xi[rover::kMaxWheels], b[3];  // ξ: the first numWheels()
-  double c[2];  // the wheels' common slip (used when the rover declares it)
+  double c[3];  // the wheels' common slip c_x, c_y (, c_ω): the first nc_ (when declared)
 };
 
 double seconds(std::chrono::steady_clock::time_point t0) {
@@ -118,7 +118,7 @@ class SegmentBuilder {
         cfg_(d.log.config),
         n_(spec.last - spec.first + 1),
         nw_(d.log.geometry.numWheels()),
-        nc_(d.log.config.slip_noise.hasCommonSlip() ? 2 : 0),
+        nc_(d.log.config.slip_noise.commonSlipStates()),
         na_(d.log.config.accel.hasBias() && d.log.accel ? 3 : 0),
         nk_(d.log.config.estimatesIcr() ? 1 : 0),
         contact_memo_(static_cast<size_t>(nw_)) {
@@ -183,7 +183,7 @@ class SegmentBuilder {
   const io::RoverConfig& cfg_;
   size_t n_;
   int nw_;  ///< wheels
-  int nc_;  ///< common slip states per node (0 or 2)
+  int nc_;  ///< common slip states per node (0, 2 or 3)
   int na_;  ///< the segment's accelerometer-bias states (0 or 3)
   int nk_;  ///< the segment's ICR half-track error (0 or 1)
   std::vector<NodeBlocks> nodes_;
@@ -206,6 +206,7 @@ class SegmentBuilder {
   CostMemo<PositionProcessResidual> position_memo_;
   CostMemo<MarkovProcess<3>> rate_memo_, velocity_memo_;
   CostMemo<MarkovProcess<2>> common_slip_memo_;
+  CostMemo<MarkovProcess<3>> common_slip3_memo_;  ///< with c_ω
   CostMemo<ZeroMotion> zero_velocity_memo_, zero_rate_memo_;
   std::vector<CostMemo<MarkovComponent>> contact_memo_;  ///< one per wheel
   BlockEvaluator evaluator_;
@@ -230,7 +231,7 @@ void SegmentBuilder::seedStates() {
     std::fill(std::begin(b.xi), std::end(b.xi), 0.0);
     for (int i = 0; i < nw_; ++i) b.xi[i] = s.xi[i];
     Eigen::Map<Vec3d>(b.b) = s.bias;
-    Eigen::Map<Vec2d>(b.c) = s.common_slip;
+    Eigen::Map<Vec3d>(b.c) = s.common_slip;
   }
   // Constant bias: the seed's at the segment's middle (the EKF has seen the first rest by then).
   Eigen::Map<Vec3d>{segment_bias_} = seedNode(n_ / 2).bias;
@@ -380,8 +381,11 @@ void SegmentBuilder::addProcessResiduals(size_t k) {
                      d_.gyro_period_s, gyro_axes_, a, b);
   if (randomWalkBias())  // K-9
     addBiasWalk(residuals_, dt, cfg_.gyro.bias_random_walk_rad_s_per_sqrt_s, a, b);
-  if (nc_ > 0)
+  if (nc_ == 2)
     addCommonSlipProcess(residuals_, common_slip_memo_, dt, cfg_.slip_noise,
+                         common_slip_loss_.get(), a, b);
+  if (nc_ == 3)
+    addCommonSlipProcess(residuals_, common_slip3_memo_, dt, cfg_.slip_noise,
                          common_slip_loss_.get(), a, b);
 }
 
@@ -574,7 +578,7 @@ SegmentSolution SegmentBuilder::solve() {
     node.w_body = Eigen::Map<const Vec3d>(b.w);
     node.xi = Eigen::Map<const rover::WheelVectord>(b.xi, nw_);
     node.bias = Eigen::Map<const Vec3d>(randomWalkBias() ? b.b : segment_bias_);
-    if (nc_ > 0) node.common_slip = Eigen::Map<const Vec2d>(b.c);
+    if (nc_ > 0) node.common_slip.head(nc_) = Eigen::Map<const Eigen::VectorXd>(b.c, nc_);
     if (na_ > 0) node.accel_bias = Eigen::Map<const Vec3d>(segment_accel_bias_);
     if (nk_ > 0) node.icr = segment_icr_;
   }

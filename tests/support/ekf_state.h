@@ -25,7 +25,8 @@ inline est::EkfMatrix randomSmallCovariance(std::mt19937& rng, int n) {
 
 /// A random nominal state of a rover with `wheels` wheels (unit quaternion uniform on SO(3)); the
 /// common slip c random too when `common_slip`, the accelerometer bias b_a when `accel_bias`.
-inline est::EkfState randomEkfState(std::mt19937& rng, int wheels, bool common_slip = false,
+/// `common_slip`: c's states (0, 2 or 3).
+inline est::EkfState randomEkfState(std::mt19937& rng, int wheels, int common_slip = 0,
                                     bool accel_bias = false) {
   est::EkfState x;
   x.q_site_body = randomUnitQuaternion(rng);
@@ -36,16 +37,20 @@ inline est::EkfState randomEkfState(std::mt19937& rng, int wheels, bool common_s
   x.xi.resize(wheels);
   for (int i = 0; i < wheels; ++i) x.xi[i] = u(rng);
   x.bias = randomVector<3>(rng, 0.02);
-  if (common_slip) x.common_slip = randomVector<2>(rng, 0.03);
+  if (common_slip > 0) x.common_slip.head<2>() = randomVector<2>(rng, 0.03);
+  if (common_slip == 3) x.common_slip.z() = randomVector<1>(rng, 0.01)[0];
   if (accel_bias) x.accel_bias = randomVector<3>(rng, 0.2);
   return x;
 }
 
-/// x̂ ⊞ δx in the filter's error coordinates (attitude on the body side: q̂ ⊗ Exp(δθ)); c and
-/// b_a move when δx has their states (told apart by its size: ekfStates(N, C, A)).
-inline est::EkfState ekfBoxplus(const est::EkfState& x, const est::EkfVector& dx) {
+/// x̂ ⊞ δx in the filter's error coordinates (attitude on the body side: q̂ ⊗ Exp(δθ)); c
+/// (`common_slip` states: 0, 2 or 3), b_a and δ move when the layout has them.
+inline est::EkfState ekfBoxplus(const est::EkfState& x, const est::EkfVector& dx, int common_slip,
+                                bool accel_bias, bool icr = false) {
   using I = est::EkfIndex;
   const int wheels = static_cast<int>(x.xi.size());
+  const int na = accel_bias ? est::kAccelBiasStates : 0;
+  EXPECT_EQ(dx.size(), est::ekfStates(wheels, common_slip, na, icr ? est::kIcrStates : 0));
   est::EkfState y = x;
   y.q_site_body = so3::boxplus(x.q_site_body, Vec3d(dx.segment<3>(I::kTheta)));
   y.w_p += dx.segment<3>(I::kRate);
@@ -53,13 +58,9 @@ inline est::EkfState ekfBoxplus(const est::EkfState& x, const est::EkfVector& dx
   y.v_p += dx.segment<3>(I::kVel);
   y.xi += dx.segment(I::kXi, wheels);
   y.bias += dx.segment<3>(I::kBias);
-  const int n = static_cast<int>(dx.size());
-  const bool c = n == est::ekfStates(wheels, est::kCommonSlipStates) ||
-                 n == est::ekfStates(wheels, est::kCommonSlipStates, est::kAccelBiasStates);
-  const bool a = n == est::ekfStates(wheels, 0, est::kAccelBiasStates) ||
-                 n == est::ekfStates(wheels, est::kCommonSlipStates, est::kAccelBiasStates);
-  if (c) y.common_slip += dx.segment<2>(I::commonSlip(wheels));
-  if (a) y.accel_bias += dx.segment<3>(I::accelBias(wheels, c ? est::kCommonSlipStates : 0));
+  for (int j = 0; j < common_slip; ++j) y.common_slip[j] += dx[I::commonSlip(wheels) + j];
+  if (accel_bias) y.accel_bias += dx.segment<3>(I::accelBias(wheels, common_slip));
+  if (icr) y.icr += dx[I::icr(wheels, common_slip, na)];
   return y;
 }
 

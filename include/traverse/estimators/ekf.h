@@ -31,13 +31,13 @@
 
 namespace traverse::est {
 
-/// Size of the error state of a rover with `wheels` wheels, `common_slip` (0 or 2) common slip
+/// Size of the error state of a rover with `wheels` wheels, `common_slip` (0, 2 or 3) common slip
 /// states, `accel_bias` (0 or 3) accelerometer-bias states and `icr` (0 or 1) ICR half-track
 /// states, and its largest value.
 constexpr int ekfStates(int wheels, int common_slip = 0, int accel_bias = 0, int icr = 0) {
   return 15 + wheels + common_slip + accel_bias + icr;
 }
-inline constexpr int kCommonSlipStates = 2;
+inline constexpr int kCommonSlipStates = 3;  ///< the most: c_x, c_y, c_ω
 inline constexpr int kAccelBiasStates = 3;
 inline constexpr int kIcrStates = 1;
 inline constexpr int kMaxEkfStates =
@@ -125,13 +125,14 @@ using rover::JointSample;
 /// The nominal state (the point the error state is taken about).
 struct EkfState {
   Quatd q_site_body = Quatd::Identity();
-  Vec3d w_p = Vec3d::Zero();          ///< rate perturbation ω_p (body)
-  Vec3d p_site = Vec3d::Zero();       ///< position x (site)
-  Vec3d v_p = Vec3d::Zero();          ///< velocity perturbation v_p (body; O-4: the body velocity)
-  rover::WheelVectord xi;             ///< contact angles ξ1..ξN
-  Vec3d bias = Vec3d::Zero();         ///< gyro bias b
-  Vec2d common_slip = Vec2d::Zero();  ///< c (body x, y; zero without the state)
-  Vec3d accel_bias = Vec3d::Zero();   ///< b_a (body, m/s²; zero without the state)
+  Vec3d w_p = Vec3d::Zero();     ///< rate perturbation ω_p (body)
+  Vec3d p_site = Vec3d::Zero();  ///< position x (site)
+  Vec3d v_p = Vec3d::Zero();     ///< velocity perturbation v_p (body; O-4: the body velocity)
+  rover::WheelVectord xi;        ///< contact angles ξ1..ξN
+  Vec3d bias = Vec3d::Zero();    ///< gyro bias b
+  /// c (body x, y in m/s, yaw rate c_ω in rad/s; zero without the state, c_ω zero unless declared)
+  Vec3d common_slip = Vec3d::Zero();
+  Vec3d accel_bias = Vec3d::Zero();  ///< b_a (body, m/s²; zero without the state)
   /// δ: the skid-steer ICRs' half-track error (m; io::SkidSteerConfig; zero without the state).
   double icr = 0.0;
 };
@@ -221,6 +222,8 @@ class Ekf {
   int numStates() const { return n_; }
   /// Whether the state has the common slip c (rover.yaml declares its σ).
   bool hasCommonSlip() const { return nc_ > 0; }
+  /// States of c: 0, 2 (c_x, c_y) or 3 (with c_ω).
+  int commonSlipStates() const { return nc_; }
   /// Whether the state has the accelerometer's bias b_a (rover.yaml declares its σ).
   bool hasAccelBias() const { return na_ > 0; }
   /// Whether the state has the ICR half-track error δ (a skid-steer rover whose rover.yaml
@@ -229,7 +232,8 @@ class Ekf {
   /// Replaces the nominal state (tests).
   void setState(const EkfState& s) {
     q_ = s.q_site_body, w_p_ = s.w_p, x_ = s.p_site, v_p_ = s.v_p, xi_ = s.xi, b_ = s.bias;
-    c_ = nc_ > 0 ? s.common_slip : Vec2d::Zero();
+    c_ = nc_ > 0 ? s.common_slip : Vec3d::Zero();
+    if (nc_ < 3) c_.z() = 0.0;
     ba_ = na_ > 0 ? s.accel_bias : Vec3d::Zero();
     icr_ = nk_ > 0 ? s.icr : 0.0;
   }
@@ -278,10 +282,10 @@ class Ekf {
   Quatd q_;
   Vec3d w_p_, x_, v_p_, b_;
   rover::WheelVectord xi_;
-  Vec2d c_ = Vec2d::Zero();
+  Vec3d c_ = Vec3d::Zero();  ///< c_x, c_y, c_ω (the last zero unless nc_ == 3)
   Vec3d ba_ = Vec3d::Zero();
   double icr_ = 0.0;
-  /// Wheels, common slip states (0, 2) and their offset, accelerometer-bias states (0, 3) and
+  /// Wheels, common slip states (0, 2, 3) and their offset, accelerometer-bias states (0, 3) and
   /// their offset, ICR states (0, 1) and their offset, error-state size.
   int nw_, nc_, kc_, na_, ka_, nk_, kk_, n_;
   EkfMatrix P_;

@@ -21,11 +21,11 @@
 namespace traverse::est {
 
 /// x_a ⊟ x_b in the filter's error state (numStates entries; ξ, c, b_a and δ by the filter's
-/// sizes).
-EkfVector ekfStateDifference(const EkfState& a, const EkfState& b, int wheels, bool common_slip,
+/// sizes; `common_slip` is the number of c's states, 0, 2 or 3: Ekf::commonSlipStates()).
+EkfVector ekfStateDifference(const EkfState& a, const EkfState& b, int wheels, int common_slip,
                              bool accel_bias = false, bool icr = false);
 /// x ⊞ δ (the filter's absorb without the covariance reset).
-EkfState ekfStatePlus(const EkfState& x, const EkfVector& delta, int wheels, bool common_slip,
+EkfState ekfStatePlus(const EkfState& x, const EkfVector& delta, int wheels, int common_slip,
                       bool accel_bias = false, bool icr = false);
 
 /// The smoothed states at the chain's points (index as RtsChain::points) and their covariances.
@@ -35,7 +35,7 @@ struct RtsStates {
 };
 /// The backward pass above. A prior covariance that is not positive definite (LDLT fails) gives
 /// C from its pseudo-inverse (eigenvalues below 1e-15 of the largest dropped).
-RtsStates rtsBackward(const RtsChain& chain, int wheels, bool common_slip, bool accel_bias = false,
+RtsStates rtsBackward(const RtsChain& chain, int wheels, int common_slip, bool accel_bias = false,
                       bool icr = false);
 
 /// The trajectory "rts": one node per recorded trajectory node, as the filter writes them

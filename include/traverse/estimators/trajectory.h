@@ -25,9 +25,9 @@ struct TrajectoryNode {
   /// Covariance of [δp_site (m); δθ_body (rad)] — valid when the trajectory has_covariance.
   Mat6d covariance = Mat6d::Zero();
   Vec3d bias_sigma = Vec3d::Zero();  ///< 1σ of the bias (not written to the node files)
-  /// The wheels' common slip c (body x, y; m/s) when the estimator carries it
-  /// (rover.yaml slip_noise.common_*), else zero (not written to the node files).
-  Vec2d common_slip = Vec2d::Zero();
+  /// The wheels' common slip c (body x, y in m/s; yaw rate c_ω in rad/s) when the estimator
+  /// carries it (rover.yaml slip_noise.common_*), else zero (not written to the node files).
+  Vec3d common_slip = Vec3d::Zero();
   /// The accelerometer's bias b_a (body, m/s²) and its 1σ when the estimator carries it
   /// (rover.yaml accelerometer.bias_sigma_mps2), else zero (not written to the node files).
   Vec3d accel_bias = Vec3d::Zero(), accel_bias_sigma = Vec3d::Zero();

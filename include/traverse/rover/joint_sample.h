@@ -32,8 +32,17 @@ struct SlipNoise {
   /// no such state.
   double common_longitudinal_mps = 0.0;
   double common_lateral_mps = 0.0;
+  /// The wheels' common yaw-rate slip c_ω (rad/s, body z; same τ): the part of the wheels' own
+  /// correlated slips that looks like a turn — one side slipping more than the other for
+  /// seconds. With it c = (c_x, c_y, c_ω) and the wheels roll as if the body moved at
+  /// (v + (c_x, c_y, 0), ω + (0, 0, c_ω)); without it the wheels' left–right difference is
+  /// white noise to the estimators, and a correlated one is read as the body's yaw rate, against
+  /// the gyro. Needs the other two (> 0).
+  double common_yaw_rate_rad_s = 0.0;
   double common_time_constant_s = 5.0;
   bool hasCommonSlip() const { return common_longitudinal_mps > 0 || common_lateral_mps > 0; }
+  /// States of c: 0 (none), 2 (c_x, c_y) or 3 (with c_ω).
+  int commonSlipStates() const { return hasCommonSlip() ? (common_yaw_rate_rad_s > 0 ? 3 : 2) : 0; }
 };
 
 /// Joint data at a joint sample: wheel frames g_{s f_i} and the wheels' joint twists J q̇ (K-17).

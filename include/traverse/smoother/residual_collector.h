@@ -34,7 +34,7 @@ struct BlockHandle {
 };
 
 /// A node's tangent columns in the chain information (ChainPlace::col): δθ, x, v, ω, ξ (one per
-/// wheel), the wheels' common slip c when the rover declares it (`common` = 0 or 2 columns),
+/// wheel), X,
 /// then, with the random-walk bias model, the node's own bias.
 struct NodeColumns {
   static constexpr int kAttitude = 0, kPosition = 3, kVelocity = 6, kRate = 9, kContact = 12;
@@ -46,7 +46,8 @@ struct NodeColumns {
 
 /// Node k's blocks. `bias` is the gyro bias its residuals use: the node's own (random-walk
 /// model; place on node k) or the segment's (constant model; ChainPlace::kGlobal). `c`: the
-/// wheels' common slip (body x, y), size 0 (no storage) when the rover does not declare it.
+/// wheels' common slip (body x, y, and c_ω when declared), size 0 (no storage) when the rover
+/// does not declare it.
 /// `ba`: the accelerometer's bias (body, m/s²), one per segment (ChainPlace::kGlobal, after the
 /// constant gyro bias), size 0 when the rover does not declare it or the log has no accel.csv.
 /// `icr`: the skid-steer ICRs' half-track error δ (m, io::SkidSteerConfig), one per segment

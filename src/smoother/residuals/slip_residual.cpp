@@ -18,11 +18,14 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
     if (!js.wheelUsed(i)) continue;  // a wheel outage (a stuck encoder): no slip rows
     const double radius = geometry.wheels[i].radius;
     Eigen::Matrix<double, 4, 7> J;
+    // The wheels' apparent motion: the body's plus their common slip (c_ω zero unless carried).
     const Vec3d v_wheels = seed.v_body + Vec3d(seed.common_slip.x(), seed.common_slip.y(), 0.0);
+    const Vec3d w_wheels =
+        seed.w_body + Vec3d(0.0, 0.0, k.c.size == 3 ? seed.common_slip.z() : 0.0);
     rover::slipConstraintWithJacobian(js.T_body_wheel[i], radius, js.joint_twist[i], v_wheels,
-                                      seed.w_body, seed.xi[i], &J);
+                                      w_wheels, seed.xi[i], &J);
     const Eigen::Matrix4d R =
-        rover::slipCovariance(noise, js, i, v_wheels, seed.w_body, J.leftCols<6>());
+        rover::slipCovariance(noise, js, i, v_wheels, w_wheels, J.leftCols<6>());
     const double icr = geometry.wheels[i].icr_offset_y;
     SlipWheelData w{js.T_body_wheel[i],
                     radius,
@@ -35,7 +38,7 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
                     nominal_follows_state,
                     nominal_twist[5]};
     if (nominal_follows_state) {
-      w.nominal_at = Vec2d(v_wheels.x(), seed.w_body.z());
+      w.nominal_at = Vec2d(v_wheels.x(), w_wheels.z());
       w.nominal_jacobian =
           rover::nominalSlipJacobian(geometry, js.T_body_wheel[i], radius, js.joint_twist[i], icr);
       w.nominal_slip =
@@ -50,7 +53,7 @@ void addSlipResiduals(ResidualCollector& out, std::vector<SlipWheelData>& data,
       throw std::logic_error("smoother: slip data would move under its cost functions");
     data.push_back(w);
     const bool common = k.c.size > 0, has_icr = k.icr.size > 0;
-    auto* f = new SlipResidual(i, nw, &data.back(), common, has_icr);
+    auto* f = new SlipResidual(i, nw, &data.back(), k.c.size, has_icr);
     if (common && has_icr)
       out.add("slip", f, loss, k.v, k.w, k.xi, k.c, k.icr);
     else if (common)

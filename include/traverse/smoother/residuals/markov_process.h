@@ -266,18 +266,27 @@ inline void addContactProcess(ResidualCollector& out, std::vector<CostMemo<Marko
             nullptr, k.xi, k1.xi);
 }
 
-/// The wheels' common slip c (rover::SlipNoise::common_*): zero mean, steady-state σ per body
-/// axis and correlation time τ, so a = −1/τ and q = 2σ²/τ. Blocks c_k, c_{k+1}. Under `loss`
-/// (heavy-tailed): c also changes by jumps (a slip burst), as the EKF's jump test has it.
-inline void addCommonSlipProcess(ResidualCollector& out, CostMemo<MarkovProcess<2>>& memo,
-                                 double dt, const rover::SlipNoise& noise,
-                                 ceres::LossFunction* loss, const NodeHandles& k,
-                                 const NodeHandles& k1) {
+/// Stationary σ of the common slip's states (c_x, c_y in m/s, and c_ω in rad/s when declared).
+inline Eigen::VectorXd commonSlipSigma(const rover::SlipNoise& noise) {
+  Eigen::VectorXd s(noise.commonSlipStates());
+  if (s.size() >= 2) s.head<2>() << noise.common_longitudinal_mps, noise.common_lateral_mps;
+  if (s.size() == 3) s[2] = noise.common_yaw_rate_rad_s;
+  return s;
+}
+
+/// The wheels' common slip c (rover::SlipNoise::common_*): zero mean, steady-state σ per
+/// component and correlation time τ, so a = −1/τ and q = 2σ²/τ. Blocks c_k, c_{k+1} (N = 2, or 3
+/// with c_ω). Under `loss` (heavy-tailed): c also changes by jumps (a slip burst), as the EKF's
+/// jump test has it.
+template <int N>
+void addCommonSlipProcess(ResidualCollector& out, CostMemo<MarkovProcess<N>>& memo, double dt,
+                          const rover::SlipNoise& noise, ceres::LossFunction* loss,
+                          const NodeHandles& k, const NodeHandles& k1) {
+  using VecN = Eigen::Matrix<double, N, 1>;
   const double tau = noise.common_time_constant_s;
-  const Vec2d q =
-      2.0 / tau * Vec2d(noise.common_longitudinal_mps, noise.common_lateral_mps).cwiseAbs2();
+  const VecN q = 2.0 / tau * VecN(commonSlipSigma(noise)).cwiseAbs2();
   out.addShared("common_slip", memo,
-                MarkovProcess<2>(dt, Vec2d::Constant(-1.0 / tau), q, Vec2d::Zero(), Vec2d::Zero()),
+                MarkovProcess<N>(dt, VecN::Constant(-1.0 / tau), q, VecN::Zero(), VecN::Zero()),
                 loss, k.c, k1.c);
 }
 
@@ -304,13 +313,11 @@ inline void addContactPrior(ResidualCollector& out, double time_constant, double
             nullptr, k.xi);
 }
 
-/// The common slip's stationary distribution at a segment's first node: c ~ N(0, diag σ²).
+/// The common slip's stationary distribution at a segment's first node: c ~ N(0, diag σ²)
+/// (commonSlipSigma).
 inline void addCommonSlipPrior(ResidualCollector& out, const rover::SlipNoise& noise,
                                const NodeHandles& k) {
-  out.add("common_slip_prior",
-          new StationaryPriorResidual(
-              Eigen::Vector2d(noise.common_longitudinal_mps, noise.common_lateral_mps)),
-          nullptr, k.c);
+  out.add("common_slip_prior", new StationaryPriorResidual(commonSlipSigma(noise)), nullptr, k.c);
 }
 
 }  // namespace traverse::smoother
