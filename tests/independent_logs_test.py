@@ -45,11 +45,20 @@ def run(log):
 
 class IndependentLogs(unittest.TestCase):
     def check(self, scenario, seed, *extra, final_share=0.002, yaw_deg=0.2, drop=(),
-              rover="rocky7", yaw_over_sigma=None, vertical_per_m=None):
+              rover="rocky7", yaw_over_sigma=None, vertical_per_m=None, slip_noise=None,
+              yaw_vs_dr=None):
         with tempfile.TemporaryDirectory() as tmp:
             log = generate(tmp, scenario, seed, *extra, rover=rover)
             for f in drop:
                 os.remove(os.path.join(log, f))
+            if slip_noise:  # keys added to the log's rover.yaml under slip_noise
+                path = os.path.join(log, "rover.yaml")
+                with open(path) as fh:
+                    text = fh.read()
+                lines = "".join(f"  {k}: {v}\n" for k, v in slip_noise.items())
+                self.assertIn("\nslip_noise:\n", text)
+                with open(path, "w") as fh:
+                    fh.write(text.replace("\nslip_noise:\n", "\nslip_noise:\n" + lines, 1))
             r, m, out = run(log)
             self.assertEqual(r.returncode, 0, r.stderr)
             warnings = [l for l in r.stderr.splitlines() if l.startswith("warning:")]
@@ -69,6 +78,9 @@ class IndependentLogs(unittest.TestCase):
                 if vertical_per_m is not None:
                     self.assertLess(abs(e["final_vertical_error_m"]), vertical_per_m * length,
                                     where)
+                if yaw_vs_dr is not None:
+                    self.assertLess(e["yaw_rmse_deg"],
+                                    yaw_vs_dr * m["estimators"]["dr"]["yaw_rmse_deg"], where)
             for f in ("ekf.csv", "smoothed.csv", "dr.csv"):
                 with open(os.path.join(out, f)) as fh:
                     text = fh.read()
@@ -107,6 +119,17 @@ class IndependentLogs(unittest.TestCase):
         # declared white noise (0.001 rad). Issue 13's vertical drift: at most 1 mm per metre.
         self.check("tilted-multi", 1, "--terrain", "undulating", "--path-point", "ground",
                    vertical_per_m=0.001)
+
+    def test_correlated_slip_declared(self):
+        # Per-wheel Gauss-Markov slip (3 % of the wheel's speed, tau 5 s), no sun, rover.yaml
+        # declaring the wheels' common slip with its yaw component c_omega (the least-squares yaw
+        # rate of six independent 2.4 mm/s wheel slips at y = +-0.24 m: 0.004 rad/s). Without
+        # c_omega the wheels' left-right slip difference was read as a turn: yaw 2.6 deg where
+        # dead reckoning's gyro heading was 0.5 deg, yaw RMSE/sigma 7 (docs/results.md, session 26).
+        self.check("tilted-multi", 3, "--slip-sigma", "0.03", drop=("sun.csv",),
+                   final_share=0.03, yaw_deg=2.0, yaw_over_sigma=1.25, yaw_vs_dr=2.0,
+                   slip_noise={"common_longitudinal_mps": 0.001, "common_lateral_mps": 0.0001,
+                               "common_yaw_rate_rad_s": 0.004, "common_time_constant_s": 5})
 
 
 if __name__ == "__main__":
