@@ -61,7 +61,8 @@ void addPipelineOptions(CLI::App& cmd, PipelineOptions& o) {
                "and accelerometer)");
   cmd.add_flag("--no-noise-check", o.no_noise_check,
                "Keep rover.yaml's gyro and accelerometer noise even where the rests' readings "
-               "are noisier (no noise finding)");
+               "are noisier, and its slip white even where the gyro shows it correlated (no "
+               "noise finding)");
   cmd.add_option("--joints-clock-offset", o.joints_clock_offset_s,
                  "joints.csv's known clock offset in seconds (+: its stamps late); removed "
                  "instead of estimating one")
@@ -120,6 +121,7 @@ pipeline::PipelineConfig pipelineConfig(const PipelineOptions& o) {
   c.dead_reckoning.pitch_projection = o.pitch_projection;
   c.align_joints_clock = !o.no_clock_align;
   c.measure_rest_noise = !o.no_noise_check;
+  c.check_slip_correlation = !o.no_noise_check;
   c.joints_clock_offset_s = o.joints_clock_offset_s;
   auto& so = c.smoother;
   so.node_period_s = o.node_period_s;
@@ -274,6 +276,16 @@ pipeline::Estimates runPipeline(const PipelineOptions& o, const GlobalOptions& g
     f.message = n.message();
     auto at = std::find_if(diagnostics.findings.begin(), diagnostics.findings.end(),
                            [&](const io::Finding& g) { return g.file == n.file; });
+    diagnostics.findings.insert(at, f);
+  }
+  // Slip the gyro shows correlated in time: a noise finding on joints.csv, before its others.
+  if (e.slip_correlation.refuted) {
+    io::Finding f;
+    f.file = "joints.csv", f.kind = "noise", f.t = e.slip_correlation.t;
+    f.column = "yaw_rate", f.value = e.slip_correlation.sigma_yaw_rate;  // the measured σ
+    f.message = e.slip_correlation.message();
+    auto at = std::find_if(diagnostics.findings.begin(), diagnostics.findings.end(),
+                           [&](const io::Finding& g) { return g.file == f.file; });
     diagnostics.findings.insert(at, f);
   }
   for (io::Finding& f : diagnostics.findings) {

@@ -156,6 +156,11 @@ Estimates estimate(const io::TraverseLog& input, const PipelineConfig& config,
       e.segmentation = est::segment(screened, config.segmentation);
     }
   }
+  if (config.check_slip_correlation && !(screened.config.slip_noise.common_yaw_rate_rad_s > 0)) {
+    // Slip correlated in time turns the wheels against the gyro: carried where the data show it.
+    e.slip_correlation = est::wheelYawRateCheck(screened, e.segmentation);
+    if (e.slip_correlation.refuted) screened = est::withCommonYawSlip(screened, e.slip_correlation);
+  }
   const io::TraverseLog& log = screened;
   e.init = est::initialState(log, e.segmentation, config.init);
   using Clock = std::chrono::steady_clock;

@@ -11,6 +11,7 @@
 #include "traverse/estimators/ekf.h"
 #include "traverse/estimators/rest_noise.h"
 #include "traverse/estimators/segments_output.h"
+#include "traverse/estimators/slip_correlation.h"
 #include "traverse/io/diagnostics.h"
 #include "traverse/smoother/smoother.h"
 
@@ -49,6 +50,10 @@ struct PipelineConfig {
   /// Measure the gyro's and accelerometer's white noise at the rests and use it where it refutes
   /// rover.yaml's (est::restNoise): the estimators then assume the noise the data have.
   bool measure_rest_noise = true;
+  /// Test the wheels' yaw rate against the gyro's for slip correlated in time
+  /// (est::wheelYawRateCheck) and, where rover.yaml declares no common yaw slip and the test
+  /// refutes white slip, carry it at the measured σ (est::withCommonYawSlip).
+  bool check_slip_correlation = true;
   smoother::SmootherOptions smoother;
 };
 
@@ -77,6 +82,10 @@ struct Estimates {
   /// The inertial noise the rests refuted (est::restNoise), when measure_rest_noise: the
   /// estimators ran with the measured σ.
   std::vector<est::RestNoise> noise;
+  /// The wheels' yaw rate against the gyro's (est::wheelYawRateCheck), when
+  /// check_slip_correlation and rover.yaml declares no common yaw slip; refuted: the estimators
+  /// ran with c_ω at its measured σ.
+  est::SlipCorrelation slip_correlation;
   /// Variance (fraction²) of the wheels' mean rolling-radius scale that rover.yaml declares
   /// (io::OdometryConfig), carried in every estimator's position covariance
   /// (est::addOdometryScaleCovariance); 0 when it declares none.
