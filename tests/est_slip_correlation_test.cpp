@@ -50,6 +50,38 @@ TEST(EstSlipCorrelation, TheBundledLogsShowNoCorrelatedSlip) {
   EXPECT_GT(c.samples, 1000);
 }
 
+// A 15 s gap in gyro.csv while the rover drives: the joint samples inside it have no gyro rate
+// (interpolated across the gap, a turn would read as the wheels departing from the gyro), so
+// they are left out and nothing is refuted.
+TEST(EstSlipCorrelation, AGyroGapIsNotTakenForSlip) {
+  io::TraverseLog log = bundled("multi-stop");
+  const est::Segmentation seg = est::segment(log);
+  double t0 = 0.0;  // 15 s inside the longest motion segment
+  double longest = 0.0;
+  for (const est::Segment& s : seg.segments) {
+    if (s.kind == est::Segment::Kind::kMotion && s.t_end - s.t_start > longest)
+      longest = s.t_end - s.t_start, t0 = s.t_start + 0.5 * (s.t_end - s.t_start - 15.0);
+  }
+  ASSERT_GT(longest, 20.0);
+  io::Stream& g = log.gyro;
+  std::vector<Eigen::Index> keep;
+  for (Eigen::Index k = 0; k < g.size(); ++k)
+    if (g.t[k] < t0 || g.t[k] > t0 + 15.0) keep.push_back(k);
+  ASSERT_LT(static_cast<Eigen::Index>(keep.size()), g.size());
+  io::Stream cut;
+  cut.columns = g.columns;
+  cut.t.resize(static_cast<Eigen::Index>(keep.size()));
+  cut.values.resize(cut.t.size(), g.values.cols());
+  for (Eigen::Index i = 0; i < cut.t.size(); ++i)
+    cut.t[i] = g.t[keep[static_cast<size_t>(i)]],
+    cut.values.row(i) = g.values.row(keep[static_cast<size_t>(i)]);
+  g = cut;
+  const est::SlipCorrelation c = est::wheelYawRateCheck(log, seg);
+  EXPECT_FALSE(c.refuted) << c.message();
+  const est::SlipCorrelation whole = est::wheelYawRateCheck(bundled("multi-stop"), seg);
+  EXPECT_LT(c.samples, whole.samples - 100);  // the samples inside the gap were left out
+}
+
 // The left wheels slip by 20 mm/s × sin(2π t / 20 s) relative to the right: six wheels at
 // y = ±0.24 m read a yaw rate off by up to ≈ 0.02 / 0.48 = 0.042 rad/s, slowly: 5 s means of
 // RMS ≈ 0.042 · 0.71 · 0.9 = 0.027 rad/s, where multi-stop's declared white slip (its simulator's,

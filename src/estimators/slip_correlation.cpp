@@ -95,6 +95,7 @@ SlipCorrelation wheelYawRateCheck(const io::TraverseLog& log, const Segmentation
   const int gz = g.col("wz");
   if (gz < 0 || g.size() < 2 || log.geometry.numWheels() < 2) return out;
   const double sg2 = std::pow(log.config.gyro.noise_rad_s, 2);
+  const double gyro_gap = 3.0 * io::medianPeriod(g);  // as io::findGaps: a gap is not a rate
   std::vector<YawRateSample> samples;
   double lever_sum = 0.0;
   size_t seg = 0;
@@ -105,6 +106,9 @@ SlipCorrelation wheelYawRateCheck(const io::TraverseLog& log, const Segmentation
     if (segmentation.segments.empty() || segmentation.segments[seg].kind != Segment::Kind::kMotion)
       continue;
     if (js.t < g.t[0] || js.t > g.t[g.size() - 1]) continue;
+    const Eigen::Index gi = std::max<Eigen::Index>(
+        1, std::lower_bound(g.t.data(), g.t.data() + g.size(), js.t) - g.t.data());
+    if (g.t[gi] - g.t[gi - 1] > gyro_gap) continue;  // inside a gap of gyro.csv: no gyro rate
     double w = 0.0, var = 0.0, lever2 = 0.0;
     if (!wheelYawRate(log, js, &w, &var, &lever2)) continue;
     lever_sum += lever2;
