@@ -152,10 +152,7 @@ TEST(EstCommonSlip, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
           js.used.assign(kWheels, 0);
           js.used[static_cast<size_t>(wheel)] = 1;
           const EkfState x = testing::randomEkfState(rng, kWheels, nc);
-          EkfInputs in;
-          in.gyro = randomVector<3>(rng, 0.5);
-          if (has_cmd) in.v_cmd = randomVector<3>(rng, 0.2), in.w_cmd = randomVector<3>(rng, 0.4);
-          in.accel = randomVector<3>(rng, 0.5) + Vec3d(0, 0, 9.8), in.has_accel = accel;
+          const EkfInputs in = testing::randomSlipInputs(rng, has_cmd, accel);
           const EkfMatrix P = testing::randomSmallCovariance(rng, n);
           ekf.setState(x);
           ekf.setCovariance(P);

@@ -64,6 +64,16 @@ inline est::EkfState ekfBoxplus(const est::EkfState& x, const est::EkfVector& dx
   return y;
 }
 
+/// Random filter inputs for a slip update: a gyro reading, with `has_cmd` a commanded twist, and
+/// an accelerometer reading (used when `accel`).
+inline est::EkfInputs randomSlipInputs(std::mt19937& rng, bool has_cmd, bool accel) {
+  est::EkfInputs in;
+  in.gyro = randomVector<3>(rng, 0.5);
+  if (has_cmd) in.v_cmd = randomVector<3>(rng, 0.2), in.w_cmd = randomVector<3>(rng, 0.4);
+  in.accel = randomVector<3>(rng, 0.5) + Vec3d(0, 0, 9.8), in.has_accel = accel;
+  return in;
+}
+
 /// The textbook EKF update the filter's expanded, sparse one must equal: K = P Hᵀ (H P Hᵀ + R)⁻¹,
 /// dx = K r, P⁺ = G [(I − KH) P (I − KH)ᵀ + K R Kᵀ] Gᵀ with the attitude reset
 /// G = est::detail::resetJacobian(dx_θ) (dense matrices throughout).
