@@ -7,6 +7,7 @@
 // cmd.csv, both velocity models), and the smoother's slip residual with the c block against
 // central differences and a hand-checked value.
 #include <gtest/gtest.h>
+#include <cmath>
 
 #include <random>
 
@@ -183,7 +184,11 @@ TEST(EstCommonSlip, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
           const Eigen::Matrix<double, 7, 1> s = s_of(x);
           const Eigen::Matrix4d R = rover::slipCovariance(cfg.slip_noise, js, wheel, s.head<3>(),
                                                           s.segment<3>(3), Jt.leftCols<6>());
-          const testing::DenseUpdate ref = testing::denseEkfUpdate(P, H, R, r);
+          // (the filter is three-axis here: the gyro's noise on every axis, unit variance factor)
+          const testing::DenseUpdate ref = testing::denseEkfUpdate(
+              P, H,
+              testing::withGyroNoise(R, H, Mat3d::Identity(), std::pow(cfg.gyro.noise_rad_s, 2)),
+              r);
           const double err = testing::relativeDifference(ekf.covariance(), ref.P);
           worst = std::max(worst, err);
           EXPECT_LE(err, 1e-7) << "c " << nc << " cmd " << has_cmd << " accel " << accel

@@ -9,6 +9,7 @@
 // wheels roll about ICRs 6.5 cm from rover.yaml's: without the state the EKF's yaw is
 // over-confident, with it δ is found within its σ and the yaw is consistent.
 #include <gtest/gtest.h>
+#include <cmath>
 
 #include <filesystem>
 #include <fstream>
@@ -211,7 +212,9 @@ TEST(EstIcr, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
         const Eigen::Matrix<double, 7, 1> s = s_of(x);
         const Eigen::Matrix4d R = rover::slipCovariance(cfg.slip_noise, js, wheel, s.head<3>(),
                                                         s.segment<3>(3), Jt.leftCols<6>());
-        const testing::DenseUpdate ref = testing::denseEkfUpdate(P, H, R, r);
+        const testing::DenseUpdate ref = testing::denseEkfUpdate(
+            P, H,
+            testing::withGyroNoise(R, H, Mat3d::Identity(), std::pow(cfg.gyro.noise_rad_s, 2)), r);
         const EkfVector& dx = ref.dx;
         const double err = testing::relativeDifference(ekf.covariance(), ref.P);
         worst = std::max(worst, err);

@@ -94,6 +94,17 @@ inline DenseUpdate denseEkfUpdate(const Eigen::MatrixXd& P, const Eigen::MatrixX
   u.P = G * (IKH * P * IKH.transpose() + K * R * K.transpose()) * G.transpose();
   return u;
 }
+/// The noise of one wheel's slip rows as the gyro-driven EKF takes it (est::Ekf::updateSlip): the
+/// slip noise R plus the gyro reading's white noise, which reaches the rows through ω = S (ω_m − b)
+/// + … + ω_p: H_ω S σ² Sᵀ H_ωᵀ, with H_ω the rows' Jacobian on the rate perturbation ω_p and S the
+/// gyro's measured axes (a 0/1 diagonal). For one wheel this is exactly the filter's nuisance
+/// state marginalised after the update.
+inline Eigen::MatrixXd withGyroNoise(const Eigen::MatrixXd& R, const Eigen::MatrixXd& H,
+                                     const Mat3d& S, double variance) {
+  const Eigen::MatrixXd Hw = H.middleCols<3>(est::EkfIndex::kRate) * S;
+  return R + variance * Hw * Hw.transpose();
+}
+
 /// max |A − B| / max |B|.
 inline double relativeDifference(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) {
   return (A - B).cwiseAbs().maxCoeff() / B.cwiseAbs().maxCoeff();

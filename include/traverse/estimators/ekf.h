@@ -40,8 +40,11 @@ constexpr int ekfStates(int wheels, int common_slip = 0, int accel_bias = 0, int
 inline constexpr int kCommonSlipStates = 3;  ///< the most: c_x, c_y, c_ω
 inline constexpr int kAccelBiasStates = 3;
 inline constexpr int kIcrStates = 1;
+/// The gyro reading's white noise, carried for one joint sample's slip rows (Ekf::updateSlip).
+inline constexpr int kGyroNoiseStates = 3;
 inline constexpr int kMaxEkfStates =
-    ekfStates(rover::kMaxWheels, kCommonSlipStates, kAccelBiasStates, kIcrStates);
+    ekfStates(rover::kMaxWheels, kCommonSlipStates, kAccelBiasStates, kIcrStates) +
+    kGyroNoiseStates;
 /// Error-state vectors and matrices: fixed storage (no heap), size ekfStates(wheels).
 using EkfVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxEkfStates, 1>;
 using EkfMatrix =
@@ -118,6 +121,9 @@ struct EkfInputs {
   /// the step (ω from the command and ω_p, with the full rate noise); an accelerometer gap
   /// leaves the O-4 velocity a random walk (no v̇, the velocity process noise).
   bool gyro_gap = false, accel_gap = false;
+  /// Variance of the gyro reading's white noise over one sample's: (1 − u)² + u² for the
+  /// interpolation at u between two samples (1 at a sample).
+  double gyro_noise_variance_factor = 1.0;
 };
 
 using rover::JointSample;
@@ -328,6 +334,11 @@ EkfResult runEkf(const io::TraverseLog& log, const Segmentation& seg, const Init
 /// the stream's median period with `measured` false (no joint twist, no slip rows; frames from
 /// the angles interpolated across the gap), so a trajectory node exists there too.
 std::vector<JointSample> jointSamples(const io::TraverseLog& log);
+
+/// (1 − u)² + u²: the variance of a stream's white noise in its linear interpolation at t, u of
+/// the way between the samples around it, in units of one sample's variance (1 at a sample or
+/// outside the stream; EkfInputs::gyro_noise_variance_factor). `stamps`: strictly increasing.
+double interpolationVarianceFactor(const Eigen::VectorXd& stamps, double t);
 
 /// Residual r = nominal − t of wheel i's four slip rows (K-17, K §2.3.4) at s = (v, ω, ξ_i) and
 /// H = −∂r/∂s, the measurement Jacobian of the EKF's slip update. The nominal slip comes from
