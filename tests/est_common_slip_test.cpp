@@ -138,10 +138,7 @@ TEST(EstCommonSlip, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
     const int n = ekfStates(kWheels, nc);
     for (const bool has_cmd : {true, false}) {
       for (const bool accel : {false, true}) {
-        EkfOptions o;
-        o.velocity = accel ? EkfOptions::VelocityModel::kAccelDriven
-                           : EkfOptions::VelocityModel::kPerturbation;
-        o.gating = false;
+        EkfOptions o = testing::ungatedOptions(accel);
         o.common_slip_jumps = false;  // the update alone (random states are far from consistent)
         Ekf ekf(cfg, geo, o, InitialState{}, true, has_cmd);
         ASSERT_EQ(ekf.numStates(), n);

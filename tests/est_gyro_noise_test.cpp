@@ -46,10 +46,7 @@ TEST(EstGyroNoise, SlipRowsOfAllWheelsShareTheReadingsNoise) {
     const int ne = three_axis ? 3 : 1;
     for (const bool has_cmd : {true, false}) {
       for (const bool accel : {false, true}) {
-        EkfOptions o;
-        o.velocity = accel ? EkfOptions::VelocityModel::kAccelDriven
-                           : EkfOptions::VelocityModel::kPerturbation;
-        o.gating = false;
+        EkfOptions o = testing::ungatedOptions(accel);
         Ekf ekf(cfg, geo, o, InitialState{}, three_axis, has_cmd);
         ASSERT_EQ(ekf.numStates(), n);
         rover::JointSample js = testing::randomJointSample(rng);

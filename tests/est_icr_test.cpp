@@ -165,10 +165,7 @@ TEST(EstIcr, EkfSlipUpdateMatchesDenseReferenceWithNumericH) {
   double worst = 0.0;
   for (const bool has_cmd : {true, false}) {
     for (const bool accel : {false, true}) {
-      EkfOptions o;
-      o.velocity = accel ? EkfOptions::VelocityModel::kAccelDriven
-                         : EkfOptions::VelocityModel::kPerturbation;
-      o.gating = false;
+      EkfOptions o = testing::ungatedOptions(accel);
       Ekf ekf(cfg, geo, o, InitialState{}, true, has_cmd);
       ASSERT_EQ(ekf.numStates(), kN);
       for (int trial = 0; trial < 8; ++trial) {

@@ -74,6 +74,16 @@ inline est::EkfInputs randomSlipInputs(std::mt19937& rng, bool has_cmd, bool acc
   return in;
 }
 
+/// Filter options for the update reference tests: the velocity model O-4 (`accel`) or K-1, no χ²
+/// gate (random states are far from consistent).
+inline est::EkfOptions ungatedOptions(bool accel) {
+  est::EkfOptions o;
+  o.velocity = accel ? est::EkfOptions::VelocityModel::kAccelDriven
+                     : est::EkfOptions::VelocityModel::kPerturbation;
+  o.gating = false;
+  return o;
+}
+
 /// The textbook EKF update the filter's expanded, sparse one must equal: K = P Hᵀ (H P Hᵀ + R)⁻¹,
 /// dx = K r, P⁺ = G [(I − KH) P (I − KH)ᵀ + K R Kᵀ] Gᵀ with the attitude reset
 /// G = est::detail::resetJacobian(dx_θ) (dense matrices throughout).
